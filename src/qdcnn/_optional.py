@@ -1,0 +1,55 @@
+"""Guards for optional heavy dependencies (qiskit, qiskit-aer, torch, dask).
+
+Modelled on ``qiskit_machine_learning/optionals.py``: the package imports without
+the extras; code that needs one calls the matching ``require_*`` function at the
+point of use, which returns the module or raises :class:`MissingExtraError` naming
+the extra to install.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from types import ModuleType
+
+from qdcnn.errors import MissingExtraError
+
+_EXTRA_OF = {
+    "qiskit": "quantum",
+    "qiskit_aer": "quantum",
+    "qiskit_machine_learning": "quantum",
+    "torch": "dnn",
+    "dask": "dask",
+}
+
+
+def has_module(name: str) -> bool:
+    """Return whether ``name`` can be imported, without importing it."""
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def require(name: str, purpose: str) -> ModuleType:
+    """Import and return module ``name`` or raise :class:`MissingExtraError`.
+
+    Parameters
+    ----------
+    name : str
+        Top-level module, one of ``qiskit``, ``qiskit_aer``,
+        ``qiskit_machine_learning``, ``torch``, ``dask``.
+    purpose : str
+        What needs it, for the message (for example ``"the Aer backend"``).
+    """
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        raise MissingExtraError(name.replace("_", "-"), _EXTRA_OF[name], purpose) from exc
+
+
+HAS_QISKIT = has_module("qiskit")
+HAS_AER = has_module("qiskit_aer")
+HAS_QISKIT_ML = has_module("qiskit_machine_learning")
+HAS_TORCH = has_module("torch")
+HAS_DASK = has_module("dask")

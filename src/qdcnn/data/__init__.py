@@ -1,0 +1,1 @@
+"""Data: image input and output, synthetic road scenes, recording loaders and labels."""

@@ -1,0 +1,56 @@
+"""Exceptions with one-line messages that name the offending file, row or parameter."""
+
+from __future__ import annotations
+
+from os import PathLike
+
+
+class QdcnnError(Exception):
+    """Base class of every error qdcnn raises on purpose."""
+
+
+class InputError(QdcnnError, ValueError):
+    """A file, a CSV row or another piece of input data is unusable.
+
+    Parameters
+    ----------
+    source : str or path-like
+        What is wrong: a file path, or ``"<file>:row <n>"`` for a row of a table.
+    reason : str
+        Why, in a few words (no trailing period).
+
+    Examples
+    --------
+    >>> str(InputError("IMG/a.jpg", "not a readable image"))
+    'IMG/a.jpg: not a readable image'
+    """
+
+    def __init__(self, source: str | PathLike[str], reason: str) -> None:
+        self.source = str(source)
+        self.reason = " ".join(reason.split())
+        super().__init__(f"{self.source}: {self.reason}")
+
+
+class ParameterError(QdcnnError, ValueError):
+    """A parameter value is out of its meaningful range.
+
+    The message names the parameter, the value given and what is allowed.
+    """
+
+    def __init__(self, name: str, value: object, allowed: str) -> None:
+        self.name = name
+        self.value = value
+        super().__init__(f"{name}={value!r} is invalid: {allowed}")
+
+
+class MissingExtraError(QdcnnError, ImportError):
+    """An optional dependency is needed but not installed; the message names the extra."""
+
+    def __init__(self, package: str, extra: str, purpose: str) -> None:
+        self.package = package
+        self.extra = extra
+        super().__init__(
+            f"{purpose} needs {package}, which is not installed: "
+            f"pip install 'qdcnn[{extra}]'"
+            + (" (pin torch==2.13.0 in the same command for the CPU build)" if extra == "dnn" else "")
+        )

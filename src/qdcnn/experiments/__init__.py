@@ -1,0 +1,1 @@
+"""Experiments: accuracy tables, noise sweeps, timing benchmarks and the HTML report."""

@@ -1,0 +1,1 @@
+"""Vision stage: shadow detectors, shadow removal, lane preprocessing, line grouping, metrics."""
