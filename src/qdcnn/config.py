@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from qdcnn.errors import ParameterError
 
@@ -75,32 +75,155 @@ class ShadowConfig:
 class LaneConfig:
     """Lane preprocessing and line detection (paper Sec. III-A; NOTES 5).
 
-    The ROI is a polygon in coordinates relative to the frame (x / width,
-    y / height), so one setting serves 320x160 Udacity frames and larger ones.
+    The ROI is a polygon in coordinates relative to the frame (x / (W - 1),
+    y / (H - 1), see :func:`qdcnn.vision.roi.polygon_pixels`), so one setting serves
+    320x160 Udacity frames and larger ones. Named polygons are in :attr:`ROI_PRESETS`:
+
+    - ``"udacity"`` (the default): drawn for 320x160 Udacity simulator frames. Top edge
+      just below the horizon (vanishing point near (0.5, 0.39)), sides from y = 0.5 down,
+      and a notch that leaves out the car's hood (its top is at y = 0.85 in the middle).
+    - ``"paper-640x480"``: the paper's literal ``[(0, h), (80, 380), (380, 380), (w, h)]``
+      in pixels, assuming the paper's frames were 640x480 (the paper does not give the
+      size; :func:`qdcnn.vision.lanes.paper_roi` converts it for any other assumed size).
+      On 320x160 Udacity frames it covers only the hood.
+
+    Attributes
+    ----------
+    remove_shadows : bool
+        Whether the pipeline replaces shadow pixels before this stage (not used here).
+    median_ksize, blur_ksize : int
+        Odd apertures of the median filter and of the Gaussian blur (paper: 5 and 5).
+    blur_sigma : float
+        Gaussian sigma; 0 lets OpenCV derive it from the kernel size (paper: 0).
+    smoothing_iterations : int
+        Times median filter + blur are applied (paper: 30; at 320x160 that leaves no
+        Canny edge above 175, so Udacity frames want 1-3, see :meth:`udacity`).
+    smoothing_margin : int or None
+        Smooth only the ROI's bounding box grown by this many pixels (faster); ``None``
+        smooths the whole frame, the paper's literal order. Edges inside the ROI differ
+        only where the iterated filters' support reaches past the margin.
+    canny_low, canny_high : int
+        Canny hysteresis thresholds (paper: 50 and 175).
+    roi : tuple of (x, y) pairs
+        Relative ROI polygon applied to the edge map.
+    hough_rho, hough_theta, hough_threshold, hough_min_line_length, hough_max_line_gap
+        ``cv2.HoughLinesP`` settings (paper: 1, pi/180, 8, 2, 25).
     """
+
+    ROI_PRESETS: ClassVar[dict[str, tuple[tuple[float, float], ...]]] = {
+        # clockwise from the bottom-left corner; (0.08, 1.0)..(0.92, 1.0) cut out the hood
+        "udacity": (
+            (0.0, 1.0),
+            (0.0, 0.5),
+            (0.3, 0.42),
+            (0.7, 0.42),
+            (1.0, 0.5),
+            (1.0, 1.0),
+            (0.92, 1.0),
+            (0.7, 0.87),
+            (0.5, 0.82),
+            (0.3, 0.87),
+            (0.08, 1.0),
+        ),
+        "paper-640x480": (
+            (0.0, 1.0),
+            (80 / 639, 380 / 479),
+            (380 / 639, 380 / 479),
+            (1.0, 1.0),
+        ),
+    }
 
     remove_shadows: bool = True
     median_ksize: int = 5
     blur_ksize: int = 5
     blur_sigma: float = 0.0
     smoothing_iterations: int = 30
+    smoothing_margin: int | None = 8
     canny_low: int = 50
     canny_high: int = 175
-    roi: tuple[tuple[float, float], ...] = ((0.0, 1.0), (0.25, 0.45), (0.75, 0.45), (1.0, 1.0))
+    roi: tuple[tuple[float, float], ...] = ROI_PRESETS["udacity"]
     hough_rho: float = 1.0
     hough_theta: float = math.pi / 180
     hough_threshold: int = 8
     hough_min_line_length: int = 2
     hough_max_line_gap: int = 25
 
+    def __post_init__(self) -> None:
+        for name in ("median_ksize", "blur_ksize"):
+            value = getattr(self, name)
+            bad = isinstance(value, bool) or not isinstance(value, int)
+            if bad or not 1 <= value <= 255 or value % 2 == 0:
+                raise ParameterError(f"lanes.{name}", value, "an odd integer in [1, 255]")
+        _check_range("lanes.blur_sigma", self.blur_sigma, 0.0, 1000.0)
+        _check_int("lanes.smoothing_iterations", self.smoothing_iterations, 0, 1000)
+        if self.smoothing_margin is not None:
+            _check_int("lanes.smoothing_margin", self.smoothing_margin, 0, 10**5)
+        _check_int("lanes.canny_low", self.canny_low, 0, 10**4)
+        _check_int("lanes.canny_high", self.canny_high, 0, 10**4)
+        if self.canny_low > self.canny_high:
+            raise ParameterError(
+                "lanes.canny_low", self.canny_low, f"at most canny_high={self.canny_high}"
+            )
+        roi = self.roi
+        ok = isinstance(roi, tuple | list) and len(roi) >= 3
+        if ok:
+            try:
+                pts = [(float(x), float(y)) for x, y in roi]
+            except (TypeError, ValueError):
+                ok = False
+            else:
+                ok = all(-1.0 <= v <= 2.0 and math.isfinite(v) for p in pts for v in p)
+        if not ok:
+            raise ParameterError(
+                "lanes.roi", roi, "at least 3 (x, y) pairs relative to the frame size"
+            )
+        _check_range("lanes.hough_rho", self.hough_rho, 1e-3, 1e4)
+        _check_range("lanes.hough_theta", self.hough_theta, 1e-6, math.pi)
+        _check_int("lanes.hough_threshold", self.hough_threshold, 1, 10**6)
+        _check_int("lanes.hough_min_line_length", self.hough_min_line_length, 0, 10**6)
+        _check_int("lanes.hough_max_line_gap", self.hough_max_line_gap, 0, 10**6)
+
+    @classmethod
+    def udacity(cls, **changes: Any) -> LaneConfig:
+        """Settings for 320x160 Udacity frames: the paper's, but 2 smoothing iterations."""
+        return cls(**{"smoothing_iterations": 2, **changes})
+
 
 @dataclass(frozen=True)
 class GroupingConfig:
-    """Grouping of Hough segments into two lines (paper Sec. II-A-3; NOTES 5)."""
+    """Grouping of Hough segments into two lines (paper Sec. II-A-3; NOTES 5).
+
+    Attributes
+    ----------
+    method : {"image-split", "kmeans", "spectral"}
+        How segments are split into two groups (:mod:`qdcnn.vision.grouping`).
+    features : {"slopes"}
+        The paper's feature vector: the two fitted slopes dx/dy, left line first.
+    extra_features : tuple of str
+        Named additions appended after the two slopes (not the paper's): any of
+        ``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``.
+    seed : int
+        Seed of k-means and spectral clustering.
+    """
 
     method: Literal["image-split", "kmeans", "spectral"] = "image-split"
     features: Literal["slopes"] = "slopes"
+    extra_features: tuple[str, ...] = ()
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.method not in ("image-split", "kmeans", "spectral"):
+            raise ParameterError(
+                "grouping.method", self.method, "'image-split', 'kmeans' or 'spectral'"
+            )
+        if self.features != "slopes":
+            raise ParameterError("grouping.features", self.features, "'slopes'")
+        allowed = ("intercepts", "angles", "vanishing-point-offset")
+        for extra in self.extra_features:
+            if extra not in allowed:
+                raise ParameterError(
+                    "grouping.extra_features", extra, "one of " + ", ".join(map(repr, allowed))
+                )
 
 
 @dataclass(frozen=True)

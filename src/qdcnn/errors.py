@@ -49,8 +49,8 @@ class MissingExtraError(QdcnnError, ImportError):
     def __init__(self, package: str, extra: str, purpose: str) -> None:
         self.package = package
         self.extra = extra
+        pin = " (pin torch==2.13.0 in the same command for the CPU build)"
+        hint = pin if extra == "dnn" else ""
         super().__init__(
-            f"{purpose} needs {package}, which is not installed: "
-            f"pip install 'qdcnn[{extra}]'"
-            + (" (pin torch==2.13.0 in the same command for the CPU build)" if extra == "dnn" else "")
+            f"{purpose} needs {package}, which is not installed: pip install 'qdcnn[{extra}]'{hint}"
         )

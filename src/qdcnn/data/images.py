@@ -19,7 +19,9 @@ from numpy.typing import NDArray
 
 from qdcnn.errors import InputError
 
-IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm"})
+IMAGE_SUFFIXES = frozenset(
+    {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm"}
+)
 MAX_PIXELS = 2**27  # 134 megapixels: beyond this a road frame is almost surely a mistake
 MASK_LEVEL = 128  # masks are binarised at this 8-bit level (shadow if >= 128)
 
@@ -65,7 +67,7 @@ def _decode(path: Path) -> NDArray[np.generic]:
         raise InputError(
             path, f"image is {img.shape[1]}x{img.shape[0]}, larger than {MAX_PIXELS} pixels"
         )
-    return img  # type: ignore[no-any-return]
+    return img
 
 
 def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
@@ -94,9 +96,9 @@ def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     if channels == 1:
         return np.ascontiguousarray(np.repeat(img, 3, axis=2))
     if channels == 3:
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)  # type: ignore[no-any-return]
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
     if channels == 4:
-        return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)  # type: ignore[no-any-return]
+        return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
     raise InputError(p, f"unsupported number of channels ({channels})")
 
 
@@ -168,7 +170,8 @@ def list_images(paths: Iterable[str | os.PathLike[str]], recursive: bool = False
             for child in children:
                 if child.is_dir():
                     continue
-                (out.images if child.suffix.lower() in IMAGE_SUFFIXES else out.skipped).append(child)
+                is_image = child.suffix.lower() in IMAGE_SUFFIXES
+                (out.images if is_image else out.skipped).append(child)
         elif not p.exists():
             out.missing.append(InputError(p, "file not found"))
         elif p.suffix.lower() not in IMAGE_SUFFIXES:

@@ -1,1 +1,5 @@
-"""Quantum stage: circuits, batched simulators, noise channels, UU-dagger, centroid training, VQC, hardware-time model."""
+"""Quantum stage.
+
+Batched circuits and simulators, noise channels, the UU-dagger test, centroid
+training, the VQC and the hardware-time model.
+"""

@@ -1,0 +1,127 @@
+"""Training the UU-dagger centroid: the paper's propagation algorithm (Sec. II-A-1; NOTES 3).
+
+``R(a) R(-b)`` is a rotation by ``tau = a - b`` with trace ``D = 2 cos(tau)``. The
+paper's update ``theta_{n+1} - theta_n = (d theta / dD) delta_D`` with
+``delta_D = 2 cos(tau_n) - 2`` is a Newton step towards perfect overlap ``D = 2``.
+With ``tau = x - theta`` it reads ``theta_{n+1} = theta_n + tan((x - theta_n) / 2)``,
+which converges to ``x`` for ``|x - theta| < pi`` (the opposite sign diverges).
+Because ``D`` has a double root at ``tau = 0`` the convergence is linear, not
+quadratic: near the solution each step halves the distance.
+Over a training set of angles ``x_i`` the step is averaged over ``i``; its fixed
+point is where ``mean_i tan((x_i - theta)/2) = 0``, which for a tight cluster is
+its mean.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from qdcnn.errors import ParameterError
+
+# tan((x - theta)/2) diverges as |x - theta| -> pi; a step is capped at this size
+# (radians) so that a far outlier cannot throw the centroid out of [0, pi].
+MAX_STEP = np.pi / 4
+
+
+@dataclass
+class PropagationResult:
+    """Outcome of :func:`propagate_centroid`.
+
+    Attributes
+    ----------
+    theta : float
+        Trained centroid angle.
+    history : list of float
+        Angle after each iteration, starting with the initial guess.
+    converged : bool
+        Whether the last step was smaller than the tolerance.
+    """
+
+    theta: float
+    history: list[float] = field(default_factory=list)
+    converged: bool = False
+
+    @property
+    def iterations(self) -> int:
+        return len(self.history) - 1
+
+
+def propagation_step(theta: float, x: NDArray[np.float64]) -> float:
+    """One averaged Newton step ``mean_i tan((x_i - theta) / 2)``, capped at :data:`MAX_STEP`."""
+    step = float(np.mean(np.tan(np.clip((x - theta) / 2.0, -1.5, 1.5))))
+    return float(np.clip(step, -MAX_STEP, MAX_STEP))
+
+
+def propagate_centroid(
+    angles: ArrayLike,
+    theta0: float | None = None,
+    *,
+    iterations: int = 50,
+    tol: float = 1e-9,
+) -> PropagationResult:
+    """Train a centroid angle on training angles with the propagation algorithm.
+
+    Parameters
+    ----------
+    angles : array_like
+        Training angles in radians (e.g. :func:`~qdcnn.quantum.uu_dagger.value_to_angle`
+        of the values in a shadow crop).
+    theta0 : float or None
+        Initial guess; ``None`` starts from the median of ``angles``.
+    iterations : int
+        Maximum number of updates.
+    tol : float
+        Stop when an update moves the angle by less than this.
+
+    Returns
+    -------
+    PropagationResult
+    """
+    x = np.asarray(angles, dtype=np.float64).ravel()
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        raise ParameterError("angles", "no finite values", "at least one training value")
+    if iterations < 1:
+        raise ParameterError("iterations", iterations, "at least 1")
+    theta = float(np.median(x)) if theta0 is None else float(theta0)
+    result = PropagationResult(theta, [theta])
+    for _ in range(iterations):
+        step = propagation_step(theta, x)
+        theta += step
+        result.history.append(theta)
+        if abs(step) < tol:
+            result.converged = True
+            break
+    result.theta = theta
+    return result
+
+
+def kmeans_start(
+    values: ArrayLike, *, n_clusters: int = 2, seed: int = 0, pick: str = "lowest"
+) -> float:
+    """Initial centroid from scikit-learn k-means: the centre of the lowest (or highest) cluster.
+
+    Parameters
+    ----------
+    values : array_like
+        One-dimensional training values.
+    n_clusters : int
+        Clusters to fit.
+    seed : int
+        ``random_state`` of :class:`sklearn.cluster.KMeans`.
+    pick : {"lowest", "highest"}
+        Which cluster centre to return.
+    """
+    from sklearn.cluster import KMeans
+
+    v = np.asarray(values, dtype=np.float64).reshape(-1, 1)
+    k = min(n_clusters, len(np.unique(v)))
+    if k < 1:
+        raise ParameterError("values", "empty", "at least one value")
+    centres = KMeans(n_clusters=k, n_init=1, random_state=seed).fit(v).cluster_centers_.ravel()
+    if pick not in ("lowest", "highest"):
+        raise ParameterError("pick", pick, "'lowest' or 'highest'")
+    return float(centres.min() if pick == "lowest" else centres.max())

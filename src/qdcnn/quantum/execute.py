@@ -1,0 +1,70 @@
+"""One entry point to run a batch of circuits: NumPy or Aer, exact or with shots."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn.errors import ParameterError
+from qdcnn.quantum.circuits import CircuitBatch
+from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.sampling import as_generator, check_shots, sample_probabilities
+from qdcnn.quantum.simulator import probabilities
+
+Backend = Literal["numpy", "aer"]
+BACKENDS: tuple[str, ...] = ("numpy", "aer")
+
+
+def check_backend(backend: str) -> str:
+    """Return ``backend`` if known, else raise :class:`ParameterError`."""
+    if backend not in BACKENDS:
+        raise ParameterError("backend", backend, "'numpy' or 'aer'")
+    return backend
+
+
+def run_probabilities(
+    circuit: CircuitBatch,
+    *,
+    shots: int | None = None,
+    noise: NoiseSpec | None = None,
+    backend: str = "numpy",
+    rng: int | np.random.Generator | None = None,
+) -> NDArray[np.float64]:
+    """Outcome probabilities of every circuit: exact (``shots=None``) or estimated from shots.
+
+    Parameters
+    ----------
+    circuit : CircuitBatch
+        The circuits.
+    shots : int or None
+        Measurements per circuit; ``None`` for exact probabilities.
+    noise : NoiseSpec or None
+        Gate and readout noise.
+    backend : {"numpy", "aer"}
+        Batched NumPy simulation, or Qiskit Aer (all circuits in one run call).
+    rng : int, Generator or None
+        Seed or generator for the shots (with Aer, an integer seed is drawn from it).
+
+    Returns
+    -------
+    ndarray of float64, shape (B, 2**n)
+    """
+    check_backend(backend)
+    if shots is not None:
+        check_shots(shots)
+    if backend == "numpy":
+        exact = probabilities(circuit, noise)
+        return exact if shots is None else sample_probabilities(exact, shots, rng)
+    from qdcnn.quantum.qiskit_bridge import run_aer
+
+    seed = int(as_generator(rng).integers(2**31 - 1))
+    if shots is None:
+        out = run_aer(circuit, noise=noise, seed=seed)
+        if noise is not None and noise.readout:
+            from qdcnn.quantum.simulator import apply_readout_error
+
+            out = apply_readout_error(np.asarray(out, dtype=np.float64), noise, circuit.num_qubits)
+        return np.asarray(out, dtype=np.float64)
+    return run_aer(circuit, shots=shots, noise=noise, seed=seed) / float(shots)

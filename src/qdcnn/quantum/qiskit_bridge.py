@@ -1,0 +1,110 @@
+"""The same batched circuits as Qiskit ``QuantumCircuit`` objects, run on Qiskit Aer.
+
+Qiskit and qiskit-aer are the optional ``quantum`` extra and are imported only
+inside these functions. :func:`run_aer` submits all circuits of a batch in one
+``AerSimulator.run`` call.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn._optional import require
+from qdcnn.quantum.circuits import CircuitBatch
+from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.sampling import check_shots
+
+ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z")
+
+
+def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
+    """Build Qiskit circuits: a list of ``B`` circuits, or circuit ``index`` alone.
+
+    Returns
+    -------
+    list of qiskit.QuantumCircuit or qiskit.QuantumCircuit
+    """
+    qiskit = require("qiskit", "building Qiskit circuits")
+    indices = range(circuit.batch_size) if index is None else [index]
+    out = []
+    for i in indices:
+        qc = qiskit.QuantumCircuit(circuit.num_qubits, name=f"{circuit.name}_{i}")
+        for gate, angle in zip(circuit.gates, circuit.angles_of(i), strict=True):
+            method = getattr(qc, gate.name)
+            method(*((angle,) if angle is not None else ()), *gate.qubits)
+        out.append(qc)
+    return out if index is None else out[0]
+
+
+def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = ONE_QUBIT_GATES) -> Any:
+    """A qiskit-aer ``NoiseModel`` equal to ``noise`` as qdcnn applies it.
+
+    The channel follows every one-qubit gate in ``gate_names`` and, tensored
+    with itself, every ``cx``; the readout error acts on every measured qubit.
+    """
+    aer_noise = require("qiskit_aer", "Aer noise models").noise
+    info = require("qiskit", "Aer noise models").quantum_info
+    model = aer_noise.NoiseModel(basis_gates=[*gate_names, "cx"])
+    kraus = noise.kraus()
+    if kraus is not None:
+        err = aer_noise.QuantumError(info.Kraus(list(kraus)))
+        model.add_all_qubit_quantum_error(err, list(gate_names))
+        model.add_all_qubit_quantum_error(err.tensor(err), ["cx"])
+    if noise.readout:
+        model.add_all_qubit_readout_error(aer_noise.ReadoutError(noise.readout_matrix().T))
+    return model
+
+
+def run_aer(
+    circuit: CircuitBatch,
+    *,
+    shots: int | None = None,
+    noise: NoiseSpec | None = None,
+    seed: int | None = None,
+    method: str | None = None,
+) -> NDArray[np.float64] | NDArray[np.int64]:
+    """Run every circuit of the batch on ``AerSimulator`` in one call.
+
+    Parameters
+    ----------
+    shots : int or None
+        ``None`` returns exact probabilities (Aer ``save_probabilities``);
+        otherwise counts from ``shots`` measurements per circuit.
+    noise : NoiseSpec or None
+        Gate and readout noise (exact probabilities ignore readout error, as
+        Aer applies it only to measurements).
+    seed : int or None
+        ``seed_simulator`` for reproducible shots.
+    method : str or None
+        Aer method; default ``statevector`` without noise, ``density_matrix`` with.
+
+    Returns
+    -------
+    ndarray, shape (B, 2**n)
+        Probabilities (float) or counts (int), index = basis state, qubit 0 = LSB.
+    """
+    aer = require("qiskit_aer", "the Aer backend")
+    noisy = noise is not None and not noise.is_ideal
+    sim = aer.AerSimulator(
+        method=method or ("density_matrix" if noisy else "statevector"),
+        noise_model=aer_noise_model(noise) if noisy and noise is not None else None,
+    )
+    circuits = to_qiskit(circuit)
+    d = 2**circuit.num_qubits
+    if shots is None:
+        for qc in circuits:
+            qc.save_probabilities()
+        result = sim.run(circuits, shots=1, seed_simulator=seed).result()
+        return np.array([np.asarray(result.data(i)["probabilities"]) for i in range(len(circuits))])
+    check_shots(shots)
+    for qc in circuits:
+        qc.measure_all()
+    result = sim.run(circuits, shots=shots, seed_simulator=seed).result()
+    counts = np.zeros((len(circuits), d), dtype=np.int64)
+    for i in range(len(circuits)):
+        for key, c in result.get_counts(i).items():
+            counts[i, int(key.replace(" ", ""), 2)] = c
+    return counts
