@@ -1,0 +1,122 @@
+"""Shadow removal: exact replacement values, untouched pixels, relighting recovers the lit road."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.removal import remove_shadows
+
+H, W = 40, 60
+
+
+def textured_road(seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    road = rng.normal([120, 118, 112], 10, (H, W, 3))
+    road[:, 28:31] = [230, 230, 230]  # a lane marking
+    return np.clip(np.rint(road), 0, 255).astype(np.uint8)
+
+
+def masks() -> tuple[np.ndarray, np.ndarray]:
+    shadow = np.zeros((H, W), bool)
+    shadow[10:30, 15:45] = True
+    region = np.zeros((H, W), bool)
+    region[5:, 10:50] = True
+    return shadow, region
+
+
+def test_road_fill_uses_median_of_lit_region_pixels() -> None:
+    img = textured_road()
+    shadow, region = masks()
+    out = remove_shadows(img, shadow, region)
+    target = shadow & region
+    expected = np.rint(np.median(img[region & ~shadow].astype(float), axis=0)).astype(np.uint8)
+    assert (out[target] == expected).all()
+    np.testing.assert_array_equal(out[~target], img[~target])
+
+
+def test_only_shadow_pixels_inside_region_change() -> None:
+    img = textured_road()
+    shadow, region = masks()
+    shadow[0:5, 0:10] = True  # shadow outside the region: must stay
+    for method in ("road-fill", "relight"):
+        out = remove_shadows(img, shadow, region, method=method)
+        keep = ~(shadow & region)
+        np.testing.assert_array_equal(out[keep], img[keep])
+        assert (out[shadow & region] != img[shadow & region]).any()
+
+
+def test_whole_image_region_by_default() -> None:
+    img = textured_road()
+    shadow, _ = masks()
+    out = remove_shadows(img, shadow)
+    expected = np.rint(np.median(img[~shadow].astype(float), axis=0)).astype(np.uint8)
+    assert (out[shadow] == expected).all()
+
+
+def test_relight_recovers_constant_ratio_shadow() -> None:
+    lit = textured_road(1)
+    shadow, region = masks()
+    img = lit.copy()
+    attenuation = np.array([0.45, 0.5, 0.6])
+    img[shadow] = np.rint(lit[shadow] * attenuation).astype(np.uint8)
+    out = remove_shadows(img, shadow, region, method="relight")
+    target = shadow & region
+    err = np.abs(out[target].astype(int) - lit[target].astype(int))
+    assert err.mean() < 2.5  # rounding of the darkened values is amplified by the gain
+    assert err.max() <= 6
+    # The lane marking under the shadow stays brighter than the road beside it.
+    assert out[15, 29].min() > out[15, 20].max() + 60
+
+
+def test_road_fill_flattens_the_shadow() -> None:
+    img = textured_road()
+    shadow, region = masks()
+    out = remove_shadows(img, shadow, region)
+    assert len(np.unique(out[shadow & region], axis=0)) == 1
+
+
+@pytest.mark.parametrize("method", ["road-fill", "relight"])
+def test_no_lit_or_no_shadow_pixels_returns_an_unchanged_copy(method: str) -> None:
+    img = textured_road()
+    shadow, region = masks()
+    for s, r in ((region.copy(), region), (np.zeros_like(shadow), region)):
+        out = remove_shadows(img, s, r, method=method)
+        np.testing.assert_array_equal(out, img)
+        assert not np.shares_memory(out, img)
+
+
+def test_black_shadow_relight_does_not_divide_by_zero() -> None:
+    img = textured_road()
+    shadow, region = masks()
+    img[shadow] = 0
+    out = remove_shadows(img, shadow, region, method="relight")
+    assert (out[shadow & region] == 0).all()
+
+
+def test_uint8_masks_and_greyscale_images() -> None:
+    img = textured_road()
+    shadow, region = masks()
+    expected = remove_shadows(img, shadow, region)
+    out = remove_shadows(img, shadow.astype(np.uint8) * 255, region.astype(np.uint8) * 255)
+    np.testing.assert_array_equal(out, expected)
+    grey = img[:, :, 0]
+    out_grey = remove_shadows(grey, shadow, region)
+    assert out_grey.shape == grey.shape
+    assert (out_grey[shadow & region] == np.rint(np.median(grey[region & ~shadow]))).all()
+
+
+def test_errors() -> None:
+    img = textured_road()
+    shadow, _ = masks()
+    with pytest.raises(ParameterError, match=r"^method='blur' is invalid: 'road-fill' or 'relight"):
+        remove_shadows(img, shadow, method="blur")  # type: ignore[arg-type]
+    with pytest.raises(
+        InputError, match=r"^region_mask: mask shape \(3, 3\) differs from image shape \(40, 60\)$"
+    ):
+        remove_shadows(img, shadow, np.ones((3, 3), bool))
+    with pytest.raises(InputError, match=r"^image: expected uint8"):
+        remove_shadows(img.astype(np.float32), shadow)
+    with pytest.raises(InputError, match=r"^shadow_mask: expected a bool or uint8 mask"):
+        remove_shadows(img, shadow.astype(np.float32))
