@@ -32,7 +32,10 @@ class ShadowConfig:
         Blocks per side (paper: 79). When the downsampled image has fewer pixels
         than this along an axis, each block is one downsampled pixel on that axis.
     threshold : float
-        Fidelity at or above which a block is shadow (paper: 0.75 or 0.97).
+        Fidelity at or above which a block is shadow. The paper uses 0.75 and
+        0.97, one per dataset; qdcnn defaults to 0.97 because with 8-bit values
+        the test is a band of +-28 grey levels around the centroid at 0.97 but
+        +-85 levels at 0.75, wide enough to take in lit road near a shadow.
     shots : int or None
         Shots per block circuit (paper: 1024); ``None`` uses exact probabilities.
     median_ksize : int
@@ -49,7 +52,7 @@ class ShadowConfig:
     feature: Literal["intensity", "chromaticity"] = "intensity"
     downsample: int = 4
     grid: int = 79
-    threshold: float = 0.75
+    threshold: float = 0.97
     shots: int | None = 1024
     median_ksize: int = 5
     centroid: float | None = None
@@ -202,6 +205,10 @@ class GroupingConfig:
     extra_features : tuple of str
         Named additions appended after the two slopes (not the paper's): any of
         ``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``.
+    merge_tolerance : float or None
+        Two groups that one line fits within this fraction of the width (weighted RMS)
+        are one line, status "one-line"; ``None`` keeps two slopes whenever there are
+        two groups (:func:`qdcnn.vision.grouping.group_segments`).
     seed : int
         Seed of k-means and spectral clustering.
     """
@@ -209,6 +216,7 @@ class GroupingConfig:
     method: Literal["image-split", "kmeans", "spectral"] = "image-split"
     features: Literal["slopes"] = "slopes"
     extra_features: tuple[str, ...] = ()
+    merge_tolerance: float | None = 0.03
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -224,6 +232,8 @@ class GroupingConfig:
                 raise ParameterError(
                     "grouping.extra_features", extra, "one of " + ", ".join(map(repr, allowed))
                 )
+        if self.merge_tolerance is not None:
+            _check_range("grouping.merge_tolerance", self.merge_tolerance, 0.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -49,10 +49,14 @@ class PropagationResult:
         return len(self.history) - 1
 
 
-def propagation_step(theta: float, x: NDArray[np.float64]) -> float:
+def propagation_step(
+    theta: float, x: NDArray[np.float64], weights: NDArray[np.float64] | None = None
+) -> float:
     """One averaged Newton step ``mean_i tan((x_i - theta) / 2)``, capped at :data:`MAX_STEP`."""
-    step = float(np.mean(np.tan(np.clip((x - theta) / 2.0, -1.5, 1.5))))
-    return float(np.clip(step, -MAX_STEP, MAX_STEP))
+    half = np.subtract(x, theta) * 0.5
+    np.tan(np.clip(half, -1.5, 1.5, out=half), out=half)
+    step = float(half.mean()) if weights is None else float(half @ weights) / float(weights.sum())
+    return min(max(step, -MAX_STEP), MAX_STEP)
 
 
 def propagate_centroid(
@@ -61,6 +65,7 @@ def propagate_centroid(
     *,
     iterations: int = 50,
     tol: float = 1e-9,
+    weights: ArrayLike | None = None,
 ) -> PropagationResult:
     """Train a centroid angle on training angles with the propagation algorithm.
 
@@ -75,13 +80,19 @@ def propagate_centroid(
         Maximum number of updates.
     tol : float
         Stop when an update moves the angle by less than this.
+    weights : array_like, optional
+        Non-negative weight of each angle (e.g. histogram counts).
 
     Returns
     -------
     PropagationResult
     """
     x = np.asarray(angles, dtype=np.float64).ravel()
-    x = x[np.isfinite(x)]
+    w = None if weights is None else np.asarray(weights, dtype=np.float64).ravel()
+    if w is not None and (w.shape != x.shape or (w < 0).any()):
+        raise ParameterError("weights", f"shape {w.shape}", f"non-negative, shape {x.shape}")
+    keep = np.isfinite(x) if w is None else np.isfinite(x) & (w > 0)
+    x, w = x[keep], None if w is None else w[keep]
     if x.size == 0:
         raise ParameterError("angles", "no finite values", "at least one training value")
     if iterations < 1:
@@ -89,7 +100,7 @@ def propagate_centroid(
     theta = float(np.median(x)) if theta0 is None else float(theta0)
     result = PropagationResult(theta, [theta])
     for _ in range(iterations):
-        step = propagation_step(theta, x)
+        step = propagation_step(theta, x, w)
         theta += step
         result.history.append(theta)
         if abs(step) < tol:

@@ -34,12 +34,38 @@ def _apply_1q(state: NDArray[Any], m: NDArray[Any], q: int, n: int) -> NDArray[A
     return out.reshape(b, 2**n)
 
 
+_FUSABLE = frozenset({"ry", "rx", "rz", "p"})
+
+
+def fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
+    """Merge runs of same-axis rotations on one qubit into one gate (exact).
+
+    ``RY(a) RY(b) = RY(a + b)``, and likewise for ``RX``, ``RZ`` and ``P``; the
+    UU-dagger circuit ``RY(-theta_x) RY(theta_c)`` becomes one ``RY``.
+    """
+    out: list[Gate] = []
+    for g in gates:
+        prev = out[-1] if out else None
+        if (
+            prev is not None
+            and g.name in _FUSABLE
+            and prev.name == g.name
+            and prev.qubits == g.qubits
+            and prev.angle is not None
+            and g.angle is not None
+        ):
+            out[-1] = Gate(g.name, g.qubits, prev.angle + g.angle)
+        else:
+            out.append(g)
+    return out
+
+
 def _evolve(circuit: CircuitBatch) -> NDArray[Any]:
     """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX)."""
     n = circuit.num_qubits
     state: NDArray[Any] = np.zeros((circuit.batch_size, 2**n))
     state[:, 0] = 1.0
-    for g in circuit.gates:
+    for g in fuse_rotations(circuit.gates):
         if g.name == "cx":
             state = state[:, _cx_permutation(n, *g.qubits)]
         else:

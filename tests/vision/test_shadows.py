@@ -1,0 +1,189 @@
+"""Block-wise UU-dagger shadow detection."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from qdcnn.config import ShadowConfig
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.quantum.uu_dagger import angle_to_value, band_halfwidth
+from qdcnn.vision.shadows import (
+    ShadowModel,
+    binary_median,
+    block_grid,
+    block_means,
+    calibrate_centroid,
+    detect_shadows_uu,
+    feature_map,
+    train_from_crop,
+    train_shadow_model,
+)
+
+EXACT = ShadowConfig(shots=None)
+
+
+def road_with_shadow(rng: np.random.Generator, shape=(160, 320), lit=150.0, dark=60.0):
+    """Noisy grey road with a darker, slightly blue rectangle; returns image and mask."""
+    h, w = shape
+    img = rng.normal(lit, 6.0, (h, w, 3))
+    mask = np.zeros((h, w), bool)
+    mask[h // 3 : 2 * h // 3, w // 4 : w // 2] = True
+    img[mask] = rng.normal(dark, 6.0, (mask.sum(), 3)) * [0.9, 0.95, 1.1]
+    return np.clip(img, 0, 255).astype(np.uint8), mask
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / max((a | b).sum(), 1))
+
+
+def test_paper_geometry_1896_square_gives_79_blocks_of_6x6() -> None:
+    g = block_grid((1896, 1896), 4, 79)
+    assert g.downsampled == (474, 474)
+    assert g.grid_shape == (79, 79)
+    assert set(np.diff(g.row_edges)) == {6}
+    assert g.downsampled[0] * g.downsampled[1] == 224_676
+
+
+def test_small_frames_get_one_block_per_downsampled_pixel() -> None:
+    g = block_grid((160, 320), 4, 79)
+    assert g.downsampled == (40, 80)
+    assert g.grid_shape == (40, 79)
+
+
+def test_block_means_equal_area_downsampling_then_block_average(rng: np.random.Generator) -> None:
+    grey = rng.integers(0, 256, (203, 317)).astype(np.uint8)
+    g = block_grid(grey.shape, 4, 13)
+    ours = block_means(grey, g, 4)
+    hd, wd = g.downsampled  # downsampling by 4 drops the last rows/columns that do not fill a cell
+    small = grey[: hd * 4, : wd * 4].astype(np.float64).reshape(hd, 4, wd, 4).mean(axis=(1, 3))
+    ref = np.array(
+        [
+            [
+                small[r0:r1, c0:c1].mean()
+                for c0, c1 in zip(g.col_edges[:-1], g.col_edges[1:], strict=True)
+            ]
+            for r0, r1 in zip(g.row_edges[:-1], g.row_edges[1:], strict=True)
+        ]
+    )
+    np.testing.assert_allclose(ours, ref, atol=1e-9)
+
+
+@pytest.mark.parametrize("ksize", [3, 5, 7, 11])
+def test_binary_median_equals_opencv_median(rng: np.random.Generator, ksize: int) -> None:
+    mask = (rng.random((97, 131)) > 0.6).astype(np.uint8)
+    np.testing.assert_array_equal(binary_median(mask, ksize), cv2.medianBlur(mask, ksize))
+
+
+def test_detects_a_dark_rectangle_with_calibrated_centroid(rng: np.random.Generator) -> None:
+    img, truth = road_with_shadow(rng)
+    res = detect_shadows_uu(img, EXACT)
+    assert res.centroid_source == "calibrated"
+    # mixed blocks on the rectangle's border pull the cluster centre slightly towards lit values
+    assert res.centroid == pytest.approx(feature_map(img)[truth].mean(), abs=8)
+    assert res.mask.shape == truth.shape
+    assert iou(res.mask, truth) > 0.85
+
+
+def test_shot_sampled_detection_matches_exact_away_from_the_band_edge(
+    rng: np.random.Generator,
+) -> None:
+    img, truth = road_with_shadow(rng)
+    exact = detect_shadows_uu(img, EXACT)
+    shots = detect_shadows_uu(img, replace(EXACT, shots=1024), rng=1)
+    assert iou(shots.mask, exact.mask) > 0.97
+    assert iou(shots.mask, truth) > 0.85
+
+
+def test_given_centroid_is_a_band_threshold_on_block_means(rng: np.random.Generator) -> None:
+    img = rng.integers(0, 256, (64, 64, 3)).astype(np.uint8)
+    cfg = replace(EXACT, centroid=100.0, threshold=0.9, median_ksize=1)
+    res = detect_shadows_uu(img, cfg)
+    halfwidth = angle_to_value(band_halfwidth(0.9))
+    inside = np.abs(res.block_values - 100.0) <= halfwidth
+    away = np.abs(np.abs(res.block_values - 100.0) - halfwidth) > 1e-6
+    np.testing.assert_array_equal((res.block_scores >= 0.9)[away], inside[away])
+    assert res.centroid_source == "given"
+
+
+def test_aer_backend_gives_the_same_exact_scores(rng: np.random.Generator) -> None:
+    pytest.importorskip("qiskit_aer")
+    img, _ = road_with_shadow(rng, shape=(40, 48))
+    a = detect_shadows_uu(img, EXACT)
+    b = detect_shadows_uu(img, EXACT, backend="aer")
+    np.testing.assert_allclose(a.block_scores, b.block_scores, atol=1e-10)
+
+
+def test_chromaticity_feature_values() -> None:
+    grey = np.full((2, 2, 3), 120, np.uint8)
+    assert feature_map(grey, "chromaticity")[0, 0] == pytest.approx(127.5, abs=1e-3)
+    blue = np.array([[[60, 70, 110]]], np.uint8)
+    assert feature_map(blue, "chromaticity")[0, 0] > 127.5
+    with pytest.raises(ParameterError, match="feature='hue'"):
+        feature_map(grey, "hue")
+
+
+def test_chromaticity_detector_finds_bluish_shadow(rng: np.random.Generator) -> None:
+    img, truth = road_with_shadow(rng)
+    # c3 of this shadow is only ~11 levels above lit grey, so the band must be narrow (+-7 levels)
+    res = detect_shadows_uu(img, replace(EXACT, feature="chromaticity", threshold=0.998))
+    assert iou(res.mask, truth) > 0.8
+
+
+def test_calibration_picks_dark_mode(rng: np.random.Generator) -> None:
+    values = np.concatenate([rng.normal(55, 4, 500), rng.normal(170, 8, 2000)])
+    assert calibrate_centroid(values, "intensity", EXACT) == pytest.approx(55, abs=1.5)
+
+
+def test_image_smaller_than_one_downsampling_cell() -> None:
+    with pytest.raises(ParameterError, match=r"image size='3x2' is invalid: at least 4x4 pixels"):
+        detect_shadows_uu(np.zeros((2, 3, 3), np.uint8), EXACT)
+
+
+def test_uniform_image_does_not_crash() -> None:
+    res = detect_shadows_uu(np.full((50, 70, 3), 90, np.uint8), EXACT)
+    assert res.mask.shape == (50, 70)
+
+
+def test_train_from_crop_gives_the_shadow_value(rng: np.random.Generator) -> None:
+    img, truth = road_with_shadow(rng)
+    model = train_from_crop(img, (100, 70, 150, 100), EXACT)
+    assert model.centroid == pytest.approx(feature_map(img)[truth].mean(), abs=2)
+    res = detect_shadows_uu(img, EXACT, model=model)
+    assert res.centroid_source == "model"
+    assert iou(res.mask, truth) > 0.85
+    with pytest.raises(ParameterError, match="box"):
+        train_from_crop(img, (10, 10, 5, 20))
+
+
+def test_train_on_images_with_masks_and_pick_threshold(rng: np.random.Generator) -> None:
+    pairs = [road_with_shadow(rng, dark=d) for d in (50, 60, 70)]
+    model = train_shadow_model(
+        [p[0] for p in pairs], [p[1] for p in pairs], EXACT, thresholds=(0.5, 0.75, 0.97)
+    )
+    assert model.centroid == pytest.approx(60, abs=4)
+    assert model.threshold in (0.75, 0.97)
+    img, truth = road_with_shadow(rng, dark=65)
+    assert iou(detect_shadows_uu(img, EXACT, model=model).mask, truth) > 0.85
+
+
+def test_model_file_round_trip_and_errors(tmp_path: Path) -> None:
+    model = ShadowModel("intensity", 61.5, 0.97, {"trained_on": "test"})
+    assert ShadowModel.load(model.save(tmp_path / "m.json")) == model
+    with pytest.raises(InputError, match="m2.json: model file not found"):
+        ShadowModel.load(tmp_path / "m2.json")
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(InputError, match="bad.json: not a qdcnn shadow model"):
+        ShadowModel.load(tmp_path / "bad.json")
+    (tmp_path / "other.json").write_text('{"kind": "something"}')
+    with pytest.raises(InputError, match="missing kind"):
+        ShadowModel.load(tmp_path / "other.json")
+    (tmp_path / "range.json").write_text(
+        '{"kind": "qdcnn-shadow-model", "feature": "intensity", "centroid": 900, "threshold": 0.9}'
+    )
+    with pytest.raises(ParameterError, match="centroid=900.0"):
+        ShadowModel.load(tmp_path / "range.json")
