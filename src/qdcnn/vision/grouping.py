@@ -1,0 +1,450 @@
+"""Group Hough segments into two lane lines and return their slopes (the paper's features).
+
+The paper (Sec. II-A-3, II-C and III-A; NOTES 5) reduces the Hough segments of a frame to
+two lines with one of three methods, fits a line to each group and feeds the two slopes,
+a 2x1 vector, to the direction decision. The methods here:
+
+``"image-split"``
+    A segment belongs to the left group when its midpoint is left of the frame's vertical
+    midline ``x = (W - 1) / 2``, else to the right group.
+``"kmeans"``
+    ``sklearn.cluster.KMeans(2)`` on segment descriptors (below).
+``"spectral"``
+    ``sklearn.cluster.SpectralClustering(2, affinity="nearest_neighbors")`` on the same
+    descriptors, with ``n_neighbors = min(10, N - 1)``.
+
+Segment descriptor (k-means and spectral): ``[xm / W, cos(2 theta) / 2, sin(2 theta) / 2]``
+where ``xm`` is the midpoint's x and ``theta`` the segment's angle from the image vertical.
+The doubled angle makes the descriptor continuous (a segment at +89 and one at -89 degrees
+are neighbours) and independent of which end comes first; halving it gives the orientation
+part the same spread (1) as the position part.
+
+Slope definition
+----------------
+Each group gets the least-squares line ``x = a * y + b`` through its segments' endpoints
+(pixel coordinates, y pointing down, each endpoint weighted by its segment's length).
+The feature is ``a = dx/dy``: 0 for a vertical line, finite for every non-horizontal
+line. On a straight road the left lane line has ``a < 0`` and the right one ``a > 0``.
+A group whose endpoints all lie on one row has no such line (missing, NaN).
+The left line is the group whose segment midpoints have the smaller mean x; a single
+group goes to the side of the midline its mean x is on.
+
+Missing lines
+-------------
+Every frame gets a status: "ok" (two lines), "one-line" or "no-lines"; missing slopes
+are NaN. k-means and spectral clustering always return two clusters, so a frame showing
+one road edge (e.g. the two borders of one kerb) would give two slopes of the same line:
+when one line fits all the segments within ``merge_tolerance`` (3 % of the width by
+default) the frame counts as "one-line". ``merge_tolerance=None`` turns this off.
+
+References
+----------
+.. [1] QDCNN paper, ``shared/paper/qdcnn-paper.tex``, Sec. II-A-3, II-C, III-A.
+.. [2] S. Lloyd, "Least squares quantization in PCM", IEEE Trans. Inf. Theory 28(2), 1982.
+.. [3] A. Ng, M. Jordan, Y. Weiss, "On spectral clustering: analysis and an algorithm",
+   NIPS 2001.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn.config import LaneConfig
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.lanes import detect_segments
+
+METHODS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
+EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
+    # x where each line crosses the bottom row, relative to the width (x / (W - 1))
+    "intercepts": ("intercept_left", "intercept_right"),
+    # atan(dx/dy) in radians: the slopes mapped to (-pi/2, pi/2)
+    "angles": ("angle_left", "angle_right"),
+    # x of the two lines' intersection relative to the width (x / (W - 1)), minus 0.5
+    "vanishing-point-offset": ("vanishing_point_offset",),
+}
+SLOPE_NAMES: tuple[str, str] = ("slope_left", "slope_right")
+Status = Literal["ok", "one-line", "no-lines"]
+_SPECTRAL_NEIGHBOURS = 10
+#: segments fitting one line within this fraction of the width are one line (group_segments)
+MERGE_TOLERANCE = 0.03
+_DEFAULT_LANES = LaneConfig()
+
+
+@dataclass
+class LaneFeatures:
+    """Two-line summary of one frame's segments.
+
+    Attributes
+    ----------
+    features : (2 + k,) float64 array
+        ``[slope_left, slope_right]`` (dx/dy, see the module docstring), then any extra
+        features in the order asked for; NaN where a line is missing.
+    status : {"ok", "one-line", "no-lines"}
+        Whether both lines, one line or none could be fitted.
+    n_segments : int
+        Number of segments given.
+    lines : list of two ((a, b) or None)
+        Fitted ``x = a * y + b`` per group, left first.
+    labels : (n_segments,) int64 array
+        Group of each segment: 0 = left line, 1 = right line.
+    method : str
+        Grouping method used.
+    feature_names : tuple of str
+        Name of each entry of ``features``.
+    shape : tuple of int
+        ``(H, W)`` of the frame.
+    middle_line : (a, b) or None
+        The centre line between the two fitted lines (their average), drawn by the
+        image-split overlay; None unless both lines exist.
+    """
+
+    features: NDArray[np.float64]
+    status: Status
+    n_segments: int
+    lines: list[tuple[float, float] | None]
+    labels: NDArray[np.int64]
+    method: str
+    feature_names: tuple[str, ...] = SLOPE_NAMES
+    shape: tuple[int, int] = (0, 0)
+    middle_line: tuple[float, float] | None = field(default=None)
+
+
+def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
+    """Names of the feature columns for ``extra_features`` (the two slopes first)."""
+    _check_extras(extra_features)
+    return SLOPE_NAMES + tuple(n for extra in extra_features for n in EXTRA_FEATURES[extra])
+
+
+def fit_line(segments: NDArray[np.float64]) -> tuple[float, float] | None:
+    """Length-weighted least-squares line ``x = a * y + b`` through the segments' endpoints.
+
+    Parameters
+    ----------
+    segments : (N, 4) array
+        Rows ``x1, y1, x2, y2``.
+
+    Returns
+    -------
+    (a, b) or None
+        None when there is no segment, or when all endpoints lie on one row (horizontal).
+
+    Examples
+    --------
+    >>> fit_line(np.array([[10.0, 0.0, 20.0, 10.0], [30.0, 20.0, 40.0, 30.0]]))
+    (1.0, 10.0)
+    """
+    if len(segments) == 0:
+        return None
+    x = np.concatenate([segments[:, 0], segments[:, 2]])
+    y = np.concatenate([segments[:, 1], segments[:, 3]])
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    w = np.concatenate([length, length]) + 1e-12  # a zero-length segment still counts a little
+    w /= w.sum()
+    ym = float(w @ y)
+    xm = float(w @ x)
+    dy = y - ym
+    var_y = float(w @ (dy * dy))
+    if var_y < 1e-9:
+        return None
+    a = float(w @ (dy * (x - xm))) / var_y
+    return a, xm - a * ym
+
+
+def segment_descriptors(segments: NDArray[np.float64], width: int) -> NDArray[np.float64]:
+    """Clustering descriptors ``[xm / W, cos(2 theta) / 2, sin(2 theta) / 2]`` per segment.
+
+    ``theta`` is the angle from the image vertical (``atan2(dx, dy)``), so the descriptor
+    does not depend on which end of the segment comes first.
+    """
+    dx = segments[:, 2] - segments[:, 0]
+    dy = segments[:, 3] - segments[:, 1]
+    theta2 = 2.0 * np.arctan2(dx, dy)
+    xm = 0.5 * (segments[:, 0] + segments[:, 2]) / max(width, 1)
+    return np.column_stack([xm, 0.5 * np.cos(theta2), 0.5 * np.sin(theta2)])
+
+
+def group_segments(
+    segments: NDArray[np.float64],
+    shape: tuple[int, ...],
+    method: str = "image-split",
+    *,
+    seed: int = 0,
+    extra_features: Sequence[str] = (),
+    merge_tolerance: float | None = MERGE_TOLERANCE,
+) -> LaneFeatures:
+    """Split segments into a left and a right group, fit a line to each, return the slopes.
+
+    Parameters
+    ----------
+    segments : (N, 4) array
+        Hough segments ``x1, y1, x2, y2`` in pixels (:func:`qdcnn.vision.lanes.detect_segments`).
+    shape : tuple
+        ``(H, W)`` (or ``(H, W, C)``) of the frame the segments come from.
+    method : {"image-split", "kmeans", "spectral"}
+        Grouping method (module docstring).
+    seed : int
+        Random state of k-means and spectral clustering.
+    extra_features : sequence of str
+        Named features appended after the two slopes (not the paper's): any of
+        ``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``.
+    merge_tolerance : float or None
+        When both lines are fitted but one line through all the segments fits them too,
+        i.e. the length-weighted RMS distance of the endpoints to it is below
+        ``merge_tolerance * W`` pixels, the two groups are one line seen twice (k-means
+        and spectral always return two clusters, e.g. the two borders of one painted
+        stripe): that single line is kept and the status is "one-line". ``None`` never
+        merges (two groups always give two slopes).
+
+    Returns
+    -------
+    LaneFeatures
+        Status "no-lines" when no line can be fitted, "one-line" when only one can
+        (e.g. one segment, all segments on one side for image-split, or merged groups).
+
+    Examples
+    --------
+    >>> seg = np.array([[100.0, 60, 40, 150], [220, 60, 280, 150]])
+    >>> f = group_segments(seg, (160, 320))
+    >>> f.status, np.round(f.features, 3).tolist()
+    ('ok', [-0.667, 0.667])
+    """
+    if method not in METHODS:
+        raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
+    names = feature_names(extra_features)
+    seg = np.asarray(segments, dtype=np.float64)
+    if seg.size == 0:
+        seg = seg.reshape(0, 4)
+    if seg.ndim != 2 or seg.shape[1] != 4 or not np.isfinite(seg).all():
+        raise InputError("segments", f"expected a finite (N, 4) array, got shape {seg.shape}")
+    if len(shape) < 2 or shape[0] < 1 or shape[1] < 1:
+        raise InputError("shape", f"expected (H, W), got {tuple(shape)}")
+    h, w = int(shape[0]), int(shape[1])
+    if merge_tolerance is not None and not (
+        isinstance(merge_tolerance, int | float) and 0.0 <= merge_tolerance <= 1.0
+    ):
+        raise ParameterError("merge_tolerance", merge_tolerance, "None or a number in [0, 1]")
+
+    mid_x = 0.5 * (seg[:, 0] + seg[:, 2])
+    centre = 0.5 * (w - 1)
+    if method == "image-split":
+        labels = (mid_x >= centre).astype(np.int64)
+    else:
+        labels = _cluster(segment_descriptors(seg, w), method, seed)
+        # left group first: order clusters by their mean midpoint x
+        groups = [g for g in (0, 1) if np.any(labels == g)]
+        if len(groups) == 2:
+            if mid_x[labels == 0].mean() > mid_x[labels == 1].mean():
+                labels = 1 - labels
+        elif len(groups) == 1:
+            labels = np.full(len(seg), int(mid_x.mean() >= centre), dtype=np.int64)
+
+    lines = [fit_line(seg[labels == g]) for g in (0, 1)]
+    merged = None
+    if merge_tolerance is not None and lines[0] is not None and lines[1] is not None:
+        merged = _one_line(seg, merge_tolerance * w)
+    if merged is not None:
+        slot = int(mid_x.mean() >= centre)
+        labels = np.full(len(seg), slot, dtype=np.int64)
+        lines = [None, None]
+        lines[slot] = merged
+    n_lines = sum(line is not None for line in lines)
+    status: Status = ("no-lines", "one-line", "ok")[n_lines]
+    middle = None
+    if lines[0] is not None and lines[1] is not None:
+        middle = (
+            0.5 * (lines[0][0] + lines[1][0]),
+            0.5 * (lines[0][1] + lines[1][1]),
+        )
+    values = _feature_values(lines, extra_features, h, w)
+    return LaneFeatures(
+        features=values,
+        status=status,
+        n_segments=len(seg),
+        lines=lines,
+        labels=labels.astype(np.int64),
+        method=method,
+        feature_names=names,
+        shape=(h, w),
+        middle_line=middle,
+    )
+
+
+def extract_lane_features(
+    image: NDArray[np.uint8],
+    lane_config: LaneConfig = _DEFAULT_LANES,
+    method: str = "image-split",
+    *,
+    seed: int = 0,
+    extra_features: Sequence[str] = (),
+    merge_tolerance: float | None = MERGE_TOLERANCE,
+) -> LaneFeatures:
+    """Hough segments of a road frame grouped into two lines, and the lines' slopes.
+
+    Parameters
+    ----------
+    image : (H, W, 3) or (H, W) uint8 array
+        RGB road frame (already shadow-corrected when shadow removal is used).
+    lane_config : LaneConfig
+        Preprocessing and Hough settings.
+    method, seed, extra_features, merge_tolerance
+        See :func:`group_segments`.
+
+    Returns
+    -------
+    LaneFeatures
+    """
+    if method not in METHODS:
+        raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
+    _check_extras(extra_features)
+    segments = detect_segments(image, lane_config)
+    return group_segments(
+        segments,
+        image.shape,
+        method,
+        seed=seed,
+        extra_features=extra_features,
+        merge_tolerance=merge_tolerance,
+    )
+
+
+def extract_features_batch(
+    images: Iterable[NDArray[np.uint8]],
+    lane_config: LaneConfig = _DEFAULT_LANES,
+    method: str = "image-split",
+    *,
+    seed: int = 0,
+    extra_features: Sequence[str] = (),
+    merge_tolerance: float | None = MERGE_TOLERANCE,
+) -> tuple[NDArray[np.float64], list[str]]:
+    """Feature vectors of many frames, one row each.
+
+    Parameters
+    ----------
+    images : iterable of uint8 arrays
+        Road frames (any iterable: a list, or a generator reading them one by one).
+    lane_config, method, seed, extra_features, merge_tolerance
+        See :func:`group_segments`.
+
+    Returns
+    -------
+    features : (n, 2 + k) float64 array
+        Rows as in :attr:`LaneFeatures.features` (NaN for missing lines).
+    statuses : list of str
+        ``"ok"``, ``"one-line"`` or ``"no-lines"`` per frame.
+    """
+    if method not in METHODS:
+        raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
+    n_columns = len(feature_names(extra_features))
+    rows: list[NDArray[np.float64]] = []
+    statuses: list[str] = []
+    for image in images:
+        result = extract_lane_features(
+            image,
+            lane_config,
+            method,
+            seed=seed,
+            extra_features=extra_features,
+            merge_tolerance=merge_tolerance,
+        )
+        rows.append(result.features)
+        statuses.append(result.status)
+    if not rows:
+        return np.empty((0, n_columns), dtype=np.float64), statuses
+    return np.vstack(rows), statuses
+
+
+def _check_extras(extra_features: Sequence[str]) -> None:
+    if isinstance(extra_features, str):
+        raise ParameterError("extra_features", extra_features, "a sequence of names, not a string")
+    for extra in extra_features:
+        if extra not in EXTRA_FEATURES:
+            allowed = ", ".join(map(repr, EXTRA_FEATURES))
+            raise ParameterError("extra_features", extra, f"one of {allowed}")
+
+
+@cache
+def _thread_controller() -> Any:
+    from threadpoolctl import ThreadpoolController  # type: ignore[import-untyped]
+
+    return ThreadpoolController()
+
+
+def _single_thread() -> Any:
+    """Context limiting OpenMP/BLAS to one thread.
+
+    On a few dozen points scikit-learn's thread pools cost far more than the work
+    (KMeans: about 20 ms per call with 2 threads against 0.7 ms with 1).
+    """
+    return _thread_controller().limit(limits=1)
+
+
+def _cluster(descriptors: NDArray[np.float64], method: str, seed: int) -> NDArray[np.int64]:
+    """Labels 0/1 from k-means or spectral clustering; all zeros when two groups make no sense."""
+    n = len(descriptors)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    if len(np.unique(descriptors.round(12), axis=0)) < 2:
+        return np.zeros(n, dtype=np.int64)
+    if n == 2:
+        return np.array([0, 1], dtype=np.int64)
+    from sklearn.cluster import KMeans, SpectralClustering
+
+    with _single_thread(), warnings.catch_warnings():
+        # small or disconnected neighbour graphs are expected here, and handled
+        warnings.simplefilter("ignore")
+        if method == "kmeans":
+            model = KMeans(n_clusters=2, n_init=1, random_state=seed)
+        else:
+            model = SpectralClustering(
+                n_clusters=2,
+                affinity="nearest_neighbors",
+                n_neighbors=min(_SPECTRAL_NEIGHBOURS, n - 1),
+                assign_labels="kmeans",
+                random_state=seed,
+            )
+        labels = model.fit_predict(descriptors)
+    return np.asarray(labels, dtype=np.int64)
+
+
+def _one_line(segments: NDArray[np.float64], tolerance_px: float) -> tuple[float, float] | None:
+    """The line through all segments when it fits them within the tolerance (weighted RMS)."""
+    line = fit_line(segments)
+    if line is None:
+        return None
+    x = np.concatenate([segments[:, 0], segments[:, 2]])
+    y = np.concatenate([segments[:, 1], segments[:, 3]])
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    w = np.concatenate([length, length]) + 1e-12
+    residual = (x - (line[0] * y + line[1])) / np.hypot(1.0, line[0])  # distance to the line
+    rms = float(np.sqrt((w @ (residual * residual)) / w.sum()))
+    return line if rms < tolerance_px else None
+
+
+def _feature_values(
+    lines: list[tuple[float, float] | None], extra_features: Sequence[str], h: int, w: int
+) -> NDArray[np.float64]:
+    nan = float("nan")
+    values = [line[0] if line is not None else nan for line in lines]
+    for extra in extra_features:
+        if extra == "intercepts":
+            values += [
+                (line[0] * (h - 1) + line[1]) / max(w - 1, 1) if line is not None else nan
+                for line in lines
+            ]
+        elif extra == "angles":
+            values += [float(np.arctan(line[0])) if line is not None else nan for line in lines]
+        else:  # vanishing-point-offset
+            left, right = lines
+            offset = nan
+            if left is not None and right is not None and abs(left[0] - right[0]) > 1e-9:
+                y = (right[1] - left[1]) / (left[0] - right[0])
+                offset = (left[0] * y + left[1]) / max(w - 1, 1) - 0.5
+            values.append(offset)
+    return np.asarray(values, dtype=np.float64)

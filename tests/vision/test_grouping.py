@@ -1,0 +1,319 @@
+"""Grouping of Hough segments into two lines and the paper's 2-slope feature vector."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import shared_recording
+from qdcnn.config import GroupingConfig, LaneConfig
+from qdcnn.data.images import list_images, read_image
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.grouping import (
+    METHODS,
+    extract_features_batch,
+    extract_lane_features,
+    feature_names,
+    fit_line,
+    group_segments,
+    segment_descriptors,
+)
+from qdcnn.vision.lanes import detect_segments
+
+H, W = 160, 320
+UDACITY = LaneConfig.udacity()
+SHAPE = (H, W)
+
+# (x_bottom, y_bottom, x_top, y_top) of the two drawn lines, left line first
+PAIRS = {
+    "straight": [(60, 159, 140, 72), (260, 159, 180, 72)],
+    "left-leaning": [(130, 159, 40, 72), (300, 159, 180, 72)],
+    "right-leaning": [(20, 159, 140, 72), (190, 159, 280, 72)],
+}
+
+
+def road(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """Grey road (90) with bright (230) straight lane lines, 3 px wide (RGB, 320x160)."""
+    img = np.full((H, W, 3), 90, np.uint8)
+    for x1, y1, x2, y2 in lines:
+        cv2.line(img, (x1, y1), (x2, y2), (230, 230, 230), 3)
+    return img
+
+
+def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
+    return np.array([(x1 - x2) / (y1 - y2) for x1, y1, x2, y2 in lines])
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("pair", PAIRS)
+def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
+    lines = PAIRS[pair]
+    result = extract_lane_features(road(lines), UDACITY, method)
+    assert result.status == "ok"
+    assert result.features.shape == (2,)
+    np.testing.assert_allclose(result.features, drawn_slopes(lines), rtol=0.03, atol=0.03)
+    assert result.method == method
+    assert result.feature_names == ("slope_left", "slope_right")
+
+
+def test_slope_signs_on_a_straight_road() -> None:
+    left, right = extract_lane_features(road(PAIRS["straight"]), UDACITY).features
+    assert left < 0 < right  # dx/dy with y pointing down
+
+
+@pytest.mark.parametrize("method", ["kmeans", "spectral"])
+def test_clustering_follows_a_line_across_the_midline(method: str) -> None:
+    # the right line reaches x = 120 at the top: image-split puts its top piece on the left
+    lines = [(10, 159, 60, 72), (310, 159, 120, 72)]
+    img = road(lines)
+    segments = detect_segments(img, UDACITY)
+    clustered = group_segments(segments, SHAPE, method)
+    np.testing.assert_allclose(clustered.features, drawn_slopes(lines), rtol=0.03, atol=0.03)
+    split = group_segments(segments, SHAPE, "image-split")
+    crossing = (segments[:, 0] + segments[:, 2]) / 2 < (W - 1) / 2
+    crossing &= clustered.labels == 1
+    assert crossing.any()
+    assert (split.labels[crossing] == 0).all()
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_group_order_is_left_first_whatever_the_segment_order(method: str) -> None:
+    segments = detect_segments(road(PAIRS["straight"]), UDACITY)
+    forward = group_segments(segments, SHAPE, method)
+    backward = group_segments(segments[::-1].copy(), SHAPE, method)
+    np.testing.assert_allclose(backward.features, forward.features, rtol=1e-12)
+    np.testing.assert_array_equal(backward.labels, forward.labels[::-1])
+    mid_x = (segments[:, 0] + segments[:, 2]) / 2
+    assert mid_x[forward.labels == 0].mean() < mid_x[forward.labels == 1].mean()
+
+
+@pytest.mark.parametrize("method", ["kmeans", "spectral"])
+def test_clustering_is_deterministic_for_a_seed(method: str) -> None:
+    rng = np.random.default_rng(7)
+    segments = rng.uniform(0, 150, (30, 4)) * [2, 1, 2, 1]  # no structure: the seed matters
+    a = group_segments(segments, SHAPE, method, seed=5)
+    b = group_segments(segments, SHAPE, method, seed=5)
+    np.testing.assert_array_equal(a.labels, b.labels)
+    np.testing.assert_array_equal(a.features, b.features)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_no_segments_gives_no_lines(method: str) -> None:
+    result = group_segments(np.empty((0, 4)), SHAPE, method)
+    assert result.status == "no-lines"
+    assert result.n_segments == 0
+    assert result.labels.shape == (0,) and result.labels.dtype == np.int64
+    assert np.isnan(result.features).all()
+    assert result.lines == [None, None]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_blank_frame_gives_no_lines(method: str) -> None:
+    result = extract_lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
+    assert result.status == "no-lines"
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) -> None:
+    line = PAIRS["straight"][0 if side == "left" else 1]
+    result = extract_lane_features(road([line]), UDACITY, method)
+    assert result.status == "one-line"
+    slot = 0 if side == "left" else 1
+    np.testing.assert_allclose(result.features[slot], drawn_slopes([line])[0], atol=0.03)
+    assert np.isnan(result.features[1 - slot])
+    assert (result.labels == slot).all()
+
+
+@pytest.mark.parametrize("method", ["kmeans", "spectral"])
+def test_without_merging_clustering_always_gives_two_slopes(method: str) -> None:
+    line = PAIRS["straight"][0]
+    result = extract_lane_features(road([line]), UDACITY, method, merge_tolerance=None)
+    assert result.status == "ok"  # the stripe's pieces, split in two clusters
+    np.testing.assert_allclose(result.features, drawn_slopes([line, line]), atol=0.2)
+
+
+def test_merge_keeps_two_separate_lines() -> None:
+    # parallel lines 40 px apart along x, slope -0.75: 32 px apart, so one line between
+    # them leaves an RMS distance of 16 px = 0.05 W
+    segments = np.array([[100.0, 70, 40, 150], [140, 70, 80, 150]])
+    for tolerance in (0.03, 0.045):
+        kept = group_segments(segments, SHAPE, "kmeans", merge_tolerance=tolerance)
+        assert kept.status == "ok"
+    merged = group_segments(segments, SHAPE, "kmeans", merge_tolerance=0.055)
+    assert merged.status == "one-line"
+    np.testing.assert_allclose(merged.features[0], -0.75)
+    assert merged.labels.tolist() == [0, 0]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_one_and_two_segments(method: str) -> None:
+    one = group_segments(np.array([[100.0, 70, 40, 150]]), SHAPE, method)
+    assert one.status == "one-line"
+    np.testing.assert_allclose(one.features[0], -0.75)
+    two = group_segments(np.array([[100.0, 70, 40, 150], [220, 70, 280, 150]]), SHAPE, method)
+    assert two.status == "ok"
+    np.testing.assert_allclose(two.features, [-0.75, 0.75])
+    assert two.labels.tolist() == [0, 1]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_identical_segments_give_one_line(method: str) -> None:
+    segments = np.tile([[220.0, 70, 280, 150]], (6, 1))
+    result = group_segments(segments, SHAPE, method)
+    assert result.status == "one-line"
+    assert np.isnan(result.features[0])
+    np.testing.assert_allclose(result.features[1], 0.75)
+
+
+def test_all_segments_on_one_side_with_image_split() -> None:
+    segments = np.array([[20.0, 80, 10, 150], [120, 80, 90, 150]])
+    result = group_segments(segments, SHAPE, "image-split")
+    assert result.status == "one-line"
+    assert result.lines[1] is None
+    assert result.labels.tolist() == [0, 0]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_horizontal_segments_have_no_line(method: str) -> None:
+    segments = np.array([[10.0, 100, 60, 100], [250, 90, 300, 90]])
+    result = group_segments(segments, SHAPE, method)
+    assert result.status == "no-lines"
+    assert result.n_segments == 2
+
+
+def test_fit_line_matches_weighted_polyfit() -> None:
+    rng = np.random.default_rng(11)
+    segments = rng.uniform(0, 150, (9, 4))
+    x = np.r_[segments[:, 0], segments[:, 2]]
+    y = np.r_[segments[:, 1], segments[:, 3]]
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    # polyfit's w multiplies the residuals, so sqrt(length) weighs squares by length
+    reference = np.polyfit(y, x, 1, w=np.sqrt(np.r_[length, length]))
+    np.testing.assert_allclose(fit_line(segments), reference, rtol=1e-9)
+
+
+def test_fit_line_of_collinear_segments_is_exact() -> None:
+    a, b = -0.4, 200.0
+    ys = np.array([[70.0, 90], [100, 140], [145, 159]])
+    segments = np.column_stack([a * ys[:, 0] + b, ys[:, 0], a * ys[:, 1] + b, ys[:, 1]])
+    np.testing.assert_allclose(fit_line(segments), (a, b), rtol=1e-12)
+    assert fit_line(np.empty((0, 4))) is None
+
+
+def test_descriptor_ignores_endpoint_order() -> None:
+    seg = np.array([[10.0, 20, 40, 80], [300, 150, 250, 60]])
+    np.testing.assert_allclose(
+        segment_descriptors(seg, W), segment_descriptors(seg[:, [2, 3, 0, 1]], W)
+    )
+    vertical, horizontal = np.array([[5.0, 0, 5, 9], [0.0, 5, 9, 5]])
+    d = segment_descriptors(np.array([vertical, horizontal]), W)
+    np.testing.assert_allclose(d[:, 1:], [[0.5, 0.0], [-0.5, 0.0]], atol=1e-12)
+
+
+def test_extra_features_are_appended_after_the_slopes() -> None:
+    # left line x = -0.75 y + 152.5, right line x = 0.75 y + 160
+    segments = np.array([[100.0, 70, 40, 150], [220, 80, 280, 160]])
+    result = group_segments(
+        segments, SHAPE, extra_features=("intercepts", "angles", "vanishing-point-offset")
+    )
+    left, right = result.lines
+    assert left is not None and right is not None
+    assert result.feature_names == (
+        "slope_left",
+        "slope_right",
+        "intercept_left",
+        "intercept_right",
+        "angle_left",
+        "angle_right",
+        "vanishing_point_offset",
+    )
+    y_cross = (right[1] - left[1]) / (left[0] - right[0])
+    expected = [
+        left[0],
+        right[0],
+        (left[0] * 159 + left[1]) / 319,
+        (right[0] * 159 + right[1]) / 319,
+        np.arctan(left[0]),
+        np.arctan(right[0]),
+        (left[0] * y_cross + left[1]) / 319 - 0.5,
+    ]
+    np.testing.assert_allclose(result.features, expected, rtol=1e-12)
+    np.testing.assert_allclose(result.features[:2], [-0.75, 0.75])
+    plain = group_segments(segments, SHAPE)
+    np.testing.assert_array_equal(plain.features, result.features[:2])
+
+
+def test_batch_stacks_rows_and_statuses() -> None:
+    blank = np.full((H, W, 3), 90, np.uint8)
+    images = [road(PAIRS["straight"]), blank, road(PAIRS["straight"][:1])]
+    features, statuses = extract_features_batch(
+        iter(images), UDACITY, "kmeans", extra_features=("angles",)
+    )
+    assert features.shape == (3, 4)
+    assert statuses == ["ok", "no-lines", "one-line"]
+    single = extract_lane_features(images[0], UDACITY, "kmeans", extra_features=("angles",))
+    np.testing.assert_array_equal(features[0], single.features)
+    empty, none = extract_features_batch([], UDACITY, extra_features=("intercepts",))
+    assert empty.shape == (0, 4) and none == []
+
+
+def test_middle_line_is_the_average_of_the_two_lines() -> None:
+    result = group_segments(np.array([[100.0, 70, 40, 150], [220, 70, 280, 150]]), SHAPE)
+    left, right = result.lines
+    assert left is not None and right is not None and result.middle_line is not None
+    np.testing.assert_allclose(result.middle_line, np.add(left, right) / 2)
+
+
+def test_unknown_method_or_extra_raises_parameter_error() -> None:
+    seg = np.array([[100.0, 70, 40, 150]])
+    with pytest.raises(ParameterError, match=r"^method='dbscan' is invalid"):
+        group_segments(seg, SHAPE, "dbscan")
+    with pytest.raises(ParameterError, match=r"^extra_features='curvature' is invalid"):
+        group_segments(seg, SHAPE, extra_features=("curvature",))
+    with pytest.raises(ParameterError, match=r"^extra_features='angles' is invalid"):
+        group_segments(seg, SHAPE, extra_features="angles")
+    with pytest.raises(ParameterError, match=r"^method='Kmeans' is invalid"):
+        extract_features_batch([], method="Kmeans")
+    with pytest.raises(ParameterError, match=r"^grouping.method='knn' is invalid"):
+        GroupingConfig(method="knn")  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match=r"^merge_tolerance=2.0 is invalid"):
+        group_segments(seg, SHAPE, merge_tolerance=2.0)
+    with pytest.raises(ParameterError, match=r"^grouping.merge_tolerance=-1 is invalid"):
+        GroupingConfig(merge_tolerance=-1)
+    with pytest.raises(ParameterError, match=r"^grouping.extra_features='x' is invalid"):
+        GroupingConfig(extra_features=("x",))
+    assert feature_names(("intercepts",))[2:] == ("intercept_left", "intercept_right")
+
+
+def test_bad_segments_raise_input_error() -> None:
+    with pytest.raises(InputError, match=r"^segments: expected a finite \(N, 4\) array"):
+        group_segments(np.zeros((3, 3)), SHAPE)
+    with pytest.raises(InputError, match=r"^segments: expected a finite"):
+        group_segments(np.array([[np.nan, 0, 1, 1]]), SHAPE)
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("recording", ["udacity-lake-track", "udacity-mountain-track"])
+def test_real_frames_extract_without_error(
+    recording: str, record_property: Callable[[str, object], None]
+) -> None:
+    root = shared_recording(recording)
+    paths = list_images([root / "IMG"]).images[:50]
+    images = [read_image(p) for p in paths]
+    assert len(images) == 50
+    for method in METHODS:
+        features, statuses = extract_features_batch(images, UDACITY, method)
+        assert features.shape == (50, 2)
+        counts = {s: statuses.count(s) for s in ("ok", "one-line", "no-lines")}
+        assert sum(counts.values()) == 50
+        record_property(f"{recording}/{method}", counts)
+        print(recording, method, counts)
+        ok = np.array(statuses) == "ok"
+        assert np.isfinite(features[ok]).all()
+        assert np.isnan(features[np.array(statuses) == "no-lines"]).all()
+        # the road edges are visible in most frames (measured: 72-98 % "ok")
+        assert counts["ok"] >= 25
