@@ -1,0 +1,153 @@
+"""Benchmark of shadow detection: UU-dagger (exact, shots), per-block Aer, IBT, CBS, LBP.
+
+All detectors run in the same process on the same frames, so the ratios are
+comparable; per-block Aer (one ``AerSimulator.run`` call per block, as a naive
+port of the paper's loop would do) is timed on a subset of blocks and scaled to
+the frame's block count, which the result says. The labelled hardware-time
+estimates of :mod:`qdcnn.quantum.hardware_time` are reported beside the
+measurements, never mixed with them.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn.config import ShadowConfig
+from qdcnn.experiments.timing import time_per_item
+from qdcnn.quantum.hardware_time import PROFILES, estimate_time
+from qdcnn.vision.baselines import detect_cbs, detect_ibt, detect_lbp
+from qdcnn.vision.shadows import block_grid, detect_shadows_uu
+
+SIZES: tuple[tuple[int, int], ...] = ((320, 160), (1280, 720))
+
+
+def bench_frames(width: int, height: int, n: int, seed: int = 0) -> list[NDArray[np.uint8]]:
+    """Synthetic ``track2`` frames (shadowed mountain road) at the given size."""
+    from qdcnn.data.synthetic import generate_scenes
+
+    return [s.image for s in generate_scenes("track2", n, seed=seed, width=width, height=height)]
+
+
+def _aer_per_block_seconds(
+    frame: NDArray[np.uint8], cfg: ShadowConfig, blocks: int, seed: int
+) -> tuple[float, int]:
+    """Median seconds of one Aer run call on one block circuit with ``cfg.shots`` shots."""
+    from qdcnn._optional import require
+    from qdcnn.quantum.circuits import uu_dagger_circuit
+    from qdcnn.quantum.qiskit_bridge import to_qiskit
+    from qdcnn.quantum.uu_dagger import value_to_angle
+
+    aer = require("qiskit_aer", "the per-block Aer benchmark")
+    result = detect_shadows_uu(frame, replace(cfg, shots=None))
+    values = result.block_values.ravel()
+    pick = np.random.default_rng(seed).choice(
+        values.size, size=min(blocks, values.size), replace=False
+    )
+    circuits = to_qiskit(
+        uu_dagger_circuit(value_to_angle(result.centroid), value_to_angle(values[pick]))
+    )
+    sim = aer.AerSimulator()
+    samples = []
+    for i, qc in enumerate(circuits):
+        qc.measure_all()
+        t0 = time.perf_counter()
+        sim.run(qc, shots=cfg.shots or 1024, seed_simulator=seed + i).result().get_counts()
+        samples.append(time.perf_counter() - t0)
+    return float(np.median(samples[1:] or samples)), values.size
+
+
+def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Callable[[Any], object]]:
+    shots = replace(fixed, shots=1024)
+    shots_calibrated = replace(calibrated, shots=1024)
+    return {
+        "uu-exact": lambda im: detect_shadows_uu(im, fixed),
+        "uu-exact-calibrated": lambda im: detect_shadows_uu(im, calibrated),
+        "uu-1024-shots": lambda im: detect_shadows_uu(im, shots, rng=1),
+        "uu-1024-shots-calibrated": lambda im: detect_shadows_uu(im, shots_calibrated, rng=1),
+        "ibt": detect_ibt,
+        "cbs": detect_cbs,
+    }
+
+
+def bench_shadows(
+    sizes: Sequence[tuple[int, int]] = SIZES,
+    *,
+    frames: int = 5,
+    repeats: int = 5,
+    aer_blocks: int = 200,
+    include_lbp: bool = True,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Time every detector per frame and report medians, ratios and labelled estimates.
+
+    Parameters
+    ----------
+    sizes : sequence of (width, height)
+        Frame sizes (default 320x160 and 1280x720).
+    frames : int
+        Synthetic frames per size; each timing is the mean per frame over them.
+    repeats : int
+        Passes over the frames; the median pass is reported.
+    aer_blocks : int
+        Block circuits timed one by one on Aer (0 skips Aer).
+    """
+    say = progress or (lambda _msg: None)
+    rows: list[dict[str, Any]] = []
+    for width, height in sizes:
+        images = bench_frames(width, height, frames, seed)
+        calibrated = ShadowConfig(shots=None)
+        fixed = replace(calibrated, centroid=detect_shadows_uu(images[0], calibrated).centroid)
+        methods = _detectors(calibrated, fixed)
+        if include_lbp:
+            methods["lbp"] = detect_lbp
+        size = f"{width}x{height}"
+        timings = {}
+        for name, fn in methods.items():
+            say(f"{size} {name}")
+            timings[name] = time_per_item(name, fn, images, repeats=repeats)
+        grid = block_grid((height, width), calibrated.downsample, calibrated.grid)
+        n_blocks = grid.grid_shape[0] * grid.grid_shape[1]
+        row: dict[str, Any] = {
+            "size": size,
+            "blocks": n_blocks,
+            "frames": frames,
+            "seconds": {k: t.median_s for k, t in timings.items()},
+        }
+        if aer_blocks > 0:
+            say(f"{size} aer per block")
+            per_block, total = _aer_per_block_seconds(
+                images[0], replace(fixed, shots=1024), aer_blocks, seed
+            )
+            row["aer_per_block"] = {
+                "seconds_per_block": per_block,
+                "blocks_timed": min(aer_blocks, total),
+                "seconds_per_frame": per_block * total,
+                "note": "measured per block (one AerSimulator.run call, 1024 shots),"
+                " scaled to the frame's block count",
+            }
+            row["ratio_aer_per_block_to_uu_shots"] = (
+                per_block * total / timings["uu-1024-shots"].median_s
+            )
+            row["ratio_aer_per_block_to_uu_exact"] = (
+                per_block * total / timings["uu-exact"].median_s
+            )
+        row["ratio_uu_exact_to_ibt"] = timings["uu-exact"].median_s / timings["ibt"].median_s
+        rows.append(row)
+    estimates = [estimate_time(name).to_dict() for name in PROFILES]
+    return {
+        "kind": "measured",
+        "machine": {
+            "python": platform.python_version(),
+            "processor": platform.processor() or platform.machine(),
+        },
+        "results": rows,
+        "hardware_estimates": estimates,
+    }
