@@ -1,0 +1,231 @@
+"""The UU-dagger direction rule: the printed rule, training, noise, NaN rows, sklearn API."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+from sklearn.exceptions import NotFittedError
+from sklearn.model_selection import KFold, cross_val_score
+
+from qdcnn._optional import HAS_AER
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.quantum.direction import UUDirectionClassifier, rule, soft_scores
+from qdcnn.quantum.noise import NoiseSpec
+
+
+def road_slopes(
+    n: int, rng: np.random.Generator, noise: float = 0.15
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes dx/dy of two lane lines: straight roads are symmetric (left < 0 < right),
+    a left bend shifts both slopes positive, a right bend negative."""
+    y = rng.integers(0, 3, n)
+    spread = rng.uniform(0.5, 1.5, n)
+    shift = np.select([y == 0, y == 2], [1.0, -1.0], 0.0) * rng.uniform(0.4, 1.0, n)
+    X = np.stack([-spread + shift, spread + shift], axis=1) + rng.normal(0, noise, (n, 2))
+    return X, y
+
+
+def known_rule_data(
+    n: int, rng: np.random.Generator, centroid: float, margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes labelled by the printed rule with a known centroid and margin (map: pi/2 + atan)."""
+    X = rng.uniform(-3, 3, (n, 2))
+    p = np.cos((centroid - (np.pi / 2 + np.arctan(X))) / 2) ** 2
+    return X, rule(p[:, 0], p[:, 1], margin)
+
+
+def fixed(centroid: float, margin: float = 0.2, **kw: object) -> UUDirectionClassifier:
+    return UUDirectionClassifier(
+        straight_margin=margin,
+        centroid=centroid,
+        train_margin=False,
+        angle_map="identity",
+        shots=None,
+        **kw,
+    )
+
+
+def test_rule_as_printed_known_answers() -> None:
+    p1 = [0.9, 0.2, 0.50, 0.50, 1.0, 1.0, 0.3]
+    p2 = [0.2, 0.9, 0.45, 0.55, 0.8 - 1e-9, 0.8 + 1e-9, 0.3]
+    # |d| < 0.2 straight; else d > 0 right, d < 0 left; d = 0 with margin 0 is "otherwise" = left
+    assert rule(p1, p2, 0.2).tolist() == [2, 0, 1, 1, 2, 1, 1]
+    assert rule(p1, p2, 0.0).tolist() == [2, 0, 2, 0, 2, 2, 0]
+
+
+def test_fixed_centroid_and_margin_follow_the_three_cases() -> None:
+    # centroid 0, identity angles: P_i = cos^2(theta_i / 2)
+    X = np.array([[0.0, np.pi], [np.pi, 0.0], [1.0, 1.0], [0.5, 0.9], [0.2, 1.6], [1.6, 0.2]])
+    clf = fixed(0.0).fit(X, [2, 0, 1, 1, 2, 0])
+    p = clf.circuit_probabilities(X)
+    np.testing.assert_allclose(p, np.cos(X / 2) ** 2, atol=1e-12)
+    # d = 1, -1, 0, 0.1297, 0.5046, -0.5046
+    assert clf.predict(X).tolist() == [2, 0, 1, 1, 2, 0]
+    assert clf.centroid_ == 0.0 and clf.margin_ == 0.2 and clf.accuracy_grid_ is None
+    proba = clf.predict_proba(X)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0)
+    assert np.argmax(proba, axis=1).tolist() == clf.predict(X).tolist()
+
+
+def test_antipodal_centroid_mirrors_left_and_right(rng: np.random.Generator) -> None:
+    X = rng.uniform(0, np.pi, (200, 2))
+    a = fixed(0.7).fit(X, np.zeros(200, int)).predict(X)
+    b = fixed(0.7 + np.pi).fit(X, np.zeros(200, int)).predict(X)
+    np.testing.assert_array_equal(b, np.choose(a, [2, 1, 0]))
+
+
+def test_soft_scores_argmax_reproduces_rule(rng: np.random.Generator) -> None:
+    d = rng.uniform(-1, 1, 1000)
+    for m in (0.0, 0.05, 0.2, 0.6):
+        s = soft_scores(d, m, 0.05)
+        np.testing.assert_allclose(s.sum(axis=1), 1.0)
+        np.testing.assert_array_equal(np.argmax(s, axis=1), rule(d, 0.0, m))
+
+
+def test_training_on_road_geometry_reaches_high_accuracy(rng: np.random.Generator) -> None:
+    X, y = road_slopes(300, rng)
+    Xt, yt = road_slopes(300, rng)
+    clf = UUDirectionClassifier(shots=None).fit(X, y)
+    assert clf.train_accuracy_ >= 0.95
+    assert clf.score(Xt, yt) >= 0.9
+    # the printed orientation (P1 > P2 -> right) needs the antipode of straight-ahead (pi/2)
+    assert abs(clf.centroid_ - 3 * np.pi / 2) < 0.3
+    # the default 1024 shots change few decisions
+    assert UUDirectionClassifier().fit(X, y).score(Xt, yt) >= 0.88
+
+
+@pytest.mark.parametrize(("centroid", "margin"), [(4.3, 0.27), (1.2, 0.1)])
+def test_training_recovers_known_centroid_and_margin(
+    rng: np.random.Generator, centroid: float, margin: float
+) -> None:
+    X, y = known_rule_data(500, rng, centroid, margin)
+    clf = UUDirectionClassifier(slope_scale=1.0, shots=None).fit(X, y)
+    assert clf.train_accuracy_ == 1.0
+    assert abs(clf.centroid_ - centroid) < 0.05
+    assert abs(clf.margin_ - margin) < 0.03
+
+
+def test_margin_only_and_centroid_only_training(rng: np.random.Generator) -> None:
+    X, y = known_rule_data(500, rng, 4.3, 0.27)
+    only_margin = UUDirectionClassifier(centroid=4.3, slope_scale=1.0, shots=None).fit(X, y)
+    assert only_margin.centroid_ == 4.3 and abs(only_margin.margin_ - 0.27) < 0.03
+    only_centroid = UUDirectionClassifier(
+        straight_margin=0.27, train_margin=False, slope_scale=1.0, shots=None
+    ).fit(X, y)
+    assert only_centroid.margin_ == 0.27 and abs(only_centroid.centroid_ - 4.3) < 0.05
+
+
+def test_angle_maps() -> None:
+    X = np.array([[-2.0, 0.0], [1.0, 4.0]])
+    arctan = UUDirectionClassifier(shots=None).fit(X, [0, 1])
+    assert arctan.angle_params_ == (1.5,)  # median |slope|
+    np.testing.assert_allclose(arctan.slope_angles(X), np.pi / 2 + np.arctan(X / 1.5))
+    minmax = UUDirectionClassifier(angle_map="minmax", shots=None).fit(X, [0, 1])
+    lo, hi = np.percentile(X, [1, 99])
+    expected = np.pi * np.clip((X - lo) / (hi - lo), 0, 1)
+    np.testing.assert_allclose(minmax.slope_angles(X), expected)
+    assert expected[0, 0] == 0.0 and expected[1, 1] == np.pi  # min and max lie past the percentiles
+    np.testing.assert_allclose(minmax.slope_angles([[-10.0, 10.0]]), [[0.0, np.pi]])
+
+
+def test_noise_zero_equals_ideal_and_full_depolarizing_is_straight(
+    rng: np.random.Generator,
+) -> None:
+    X, y = road_slopes(120, rng)
+    clf = UUDirectionClassifier(shots=None).fit(X, y)
+    ideal = clf.predict(X)
+    np.testing.assert_array_equal(clf.predict(X, noise=NoiseSpec("depolarizing", 0.0)), ideal)
+    assert clf.score(X, y) == np.mean(ideal == y)
+    full = NoiseSpec("depolarizing", 1.0)
+    np.testing.assert_allclose(clf.circuit_probabilities(X, noise=full), 0.5, atol=1e-12)
+    assert set(clf.predict(X, noise=full).tolist()) == {1}
+    # the estimator's own noise is used unless a call overrides it
+    noisy = clone(clf).set_params(noise=full).fit(X, y)
+    assert set(noisy.predict(X).tolist()) == {1}
+    np.testing.assert_array_equal(noisy.predict(X, noise=NoiseSpec()), ideal)
+
+
+def test_shots_are_seeded_and_binomial(rng: np.random.Generator) -> None:
+    X, y = road_slopes(200, rng)
+    clf = UUDirectionClassifier(shots=1024, seed=3).fit(X, y)
+    p = clf.circuit_probabilities(X)
+    np.testing.assert_allclose(p * 1024, np.round(p * 1024), atol=1e-9)
+    np.testing.assert_array_equal(clf.circuit_probabilities(X), p)
+    again = UUDirectionClassifier(shots=1024, seed=3).fit(X, y)
+    np.testing.assert_array_equal(again.circuit_probabilities(X), p)
+    assert clf.centroid_ == again.centroid_ and clf.margin_ == again.margin_
+    other = UUDirectionClassifier(shots=1024, seed=4).fit(X, y).circuit_probabilities(X)
+    assert not np.array_equal(other, p)
+
+
+@pytest.mark.skipif(not HAS_AER, reason="qiskit-aer not installed")
+def test_aer_backend_matches_numpy(rng: np.random.Generator) -> None:
+    X, y = road_slopes(20, rng)
+    ours = UUDirectionClassifier(shots=None).fit(X, y)
+    aer = clone(ours).set_params(backend="aer").fit(X, y)
+    np.testing.assert_allclose(
+        aer.circuit_probabilities(X), ours.circuit_probabilities(X), atol=1e-10
+    )
+
+
+def test_rows_with_a_missing_slope_get_the_majority_class(rng: np.random.Generator) -> None:
+    X, y = road_slopes(100, rng)
+    y[:60] = 1  # straight is the majority
+    X[:5, 0] = np.nan
+    X[5:8, 1] = np.nan
+    clf = UUDirectionClassifier(shots=None).fit(X, y)
+    assert clf.majority_class_ == 1
+    Xt = np.array([[np.nan, 1.0], [-1.0, np.nan], [np.nan, np.nan], [-1.0, 1.0]])
+    assert clf.predict(Xt)[:3].tolist() == [1, 1, 1]
+    proba = clf.predict_proba(Xt)
+    np.testing.assert_allclose(proba[:3], np.tile(np.bincount(y, minlength=3) / 100, (3, 1)))
+    assert np.isnan(clf.decision_function(Xt)[:3]).all() and np.isfinite(proba).all()
+
+
+def test_input_errors() -> None:
+    X = np.array([[-1.0, 1.0], [0.0, 2.0]])
+    with pytest.raises(NotFittedError):
+        UUDirectionClassifier().predict(X)
+    with pytest.raises(ParameterError, match=r"^X='<3 features>' is invalid: exactly 2 features"):
+        UUDirectionClassifier().fit(np.zeros((4, 3)), [0, 1, 2, 0])
+    clf = UUDirectionClassifier(shots=None).fit(X, [0, 1])
+    match = r"^X='<3 features>' is invalid: 2 features, as in fit$"
+    with pytest.raises(ParameterError, match=match):
+        clf.predict(np.zeros((1, 3)))
+    with pytest.raises(ParameterError, match=r"^y='<values \[0, 3\]>' is invalid: 0, 1 or 2$"):
+        UUDirectionClassifier().fit(X, [0, 3])
+    with pytest.raises(ParameterError, match="^angle_map='cos' is invalid"):
+        UUDirectionClassifier(angle_map="cos").fit(X, [0, 1])
+    with pytest.raises(ParameterError, match="^straight_margin=1.5 is invalid"):
+        UUDirectionClassifier(straight_margin=1.5).fit(X, [0, 1])
+    with pytest.raises(InputError, match="^X: no samples to fit$"):
+        UUDirectionClassifier().fit(np.zeros((0, 2)), np.zeros(0, int))
+    with pytest.raises(InputError, match="^X: no row has both slopes finite: nothing to train on$"):
+        UUDirectionClassifier().fit(np.full((2, 2), np.nan), [0, 1])
+    # nothing to train: a fixed rule fits on any rows, and predicts the majority for NaN rows
+    rule_only = fixed(0.0).fit(np.full((3, 2), np.nan), [2, 2, 0])
+    assert rule_only.predict([[np.nan, 0.0], [0.0, np.pi]]).tolist() == [2, 2]
+
+
+def test_feature_columns_pick_two_columns_of_a_wider_table(rng: np.random.Generator) -> None:
+    X, y = road_slopes(100, rng)
+    wide = np.column_stack([rng.normal(size=100), X, rng.normal(size=100)])
+    a = UUDirectionClassifier(shots=None).fit(X, y)
+    b = UUDirectionClassifier(shots=None, feature_columns=(1, 2)).fit(wide, y)
+    np.testing.assert_array_equal(a.predict(X), b.predict(wide))
+    assert b.n_features_in_ == 4
+    with pytest.raises(ParameterError, match="^feature_columns=\\(1, 1\\) is invalid"):
+        UUDirectionClassifier(feature_columns=(1, 1)).fit(wide, y)
+
+
+def test_sklearn_compatibility(rng: np.random.Generator) -> None:
+    X, y = road_slopes(150, rng)
+    clf = UUDirectionClassifier(shots=None, n_centroids=180)
+    assert clf.get_params()["n_centroids"] == 180
+    assert clf.set_params(straight_margin=0.3).straight_margin == 0.3
+    twin = clone(clf)
+    assert twin.get_params() == clf.get_params() and not hasattr(twin, "centroid_")
+    scores = cross_val_score(clf, X, y, cv=KFold(3, shuffle=False))
+    assert scores.shape == (3,) and scores.min() >= 0.85
+    assert clf.__sklearn_tags__().input_tags.allow_nan

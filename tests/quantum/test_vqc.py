@@ -1,0 +1,229 @@
+"""The two-qubit VQC: equality with qiskit-machine-learning, training, noise, sklearn API."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+from sklearn.exceptions import NotFittedError
+from sklearn.model_selection import KFold, cross_val_score
+
+from qdcnn._optional import HAS_AER, HAS_QISKIT_ML
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.vqc import (
+    VQCClassifier,
+    basis_probabilities,
+    class_probabilities,
+    interpret_matrix,
+    loss_value,
+    make_sampler_qnn,
+)
+
+needs_qiskit_ml = pytest.mark.skipif(not HAS_QISKIT_ML, reason="qiskit-machine-learning missing")
+
+
+def road_slopes(
+    n: int, rng: np.random.Generator, noise: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """Separable slope pairs: straight symmetric (left < 0 < right), left bends shift both
+    slopes positive, right bends negative."""
+    y = rng.integers(0, 3, n)
+    spread = rng.uniform(0.8, 1.2, n)
+    shift = np.select([y == 0, y == 2], [1.0, -1.0], 0.0) * rng.uniform(0.6, 0.9, n)
+    X = np.stack([-spread + shift, spread + shift], axis=1) + rng.normal(0, noise, (n, 2))
+    return X, y
+
+
+@needs_qiskit_ml
+@pytest.mark.parametrize(
+    ("interpret", "fm_reps", "ansatz_reps"),
+    [("min2", 2, 1), ("mod3", 2, 1), ((2, 0, 1, 1), 1, 2)],
+)
+def test_class_probabilities_equal_sampler_qnn_forward(
+    rng: np.random.Generator, interpret: object, fm_reps: int, ansatz_reps: int
+) -> None:
+    # QMLSampler() (shots=None) computes exact probabilities with qiskit's Statevector
+    qnn = make_sampler_qnn(interpret, feature_map_reps=fm_reps, ansatz_reps=ansatz_reps)
+    x = rng.uniform(-1, 4, (25, 2))
+    for _ in range(3):
+        w = rng.uniform(-np.pi, 2 * np.pi, 2 * (ansatz_reps + 1))
+        ours = class_probabilities(
+            x, w, interpret=interpret, feature_map_reps=fm_reps, ansatz_reps=ansatz_reps
+        )
+        np.testing.assert_allclose(ours, qnn.forward(x, w), atol=1e-8)
+
+
+@needs_qiskit_ml
+def test_fitted_predict_proba_equals_sampler_qnn(rng: np.random.Generator) -> None:
+    X, y = road_slopes(30, rng)
+    clf = VQCClassifier(maxiter=6).fit(X, y)
+    ref = make_sampler_qnn("min2").forward(clf.scale_features(X), clf.weights_)
+    np.testing.assert_allclose(clf.predict_proba(X), ref, atol=1e-8)
+
+
+@needs_qiskit_ml
+@pytest.mark.parametrize("loss", ["mse", "cross_entropy"])
+def test_qiskit_ml_engine_trains_the_same_objective(rng: np.random.Generator, loss: str) -> None:
+    X, y = road_slopes(16, rng)
+    y[:] = np.where(y == 1, 0, y)  # a training set without "straight" still has 3 outputs
+    ours = VQCClassifier(maxiter=12, loss=loss).fit(X, y)
+    theirs = VQCClassifier(maxiter=12, loss=loss, engine="qiskit-ml").fit(X, y)
+    assert len(theirs.objective_history_) == len(ours.objective_history_) == 12
+    np.testing.assert_array_equal(theirs.weight_history_[0], ours.initial_weights_)
+    # every (weights, value) qiskit-ml evaluated is our objective at those weights; the
+    # COBYLA paths themselves may part once values differ by ~1e-12 (seen with cross-entropy)
+    angles, onehot = ours.scale_features(X), np.eye(3)[y]
+    for w, value in zip(theirs.weight_history_, theirs.objective_history_, strict=True):
+        assert loss_value(class_probabilities(angles, w), onehot, loss) == pytest.approx(
+            value, abs=1e-9
+        )
+    assert theirs.objective_ == pytest.approx(min(theirs.objective_history_), abs=1e-12)
+
+
+def test_loss_known_values() -> None:
+    onehot = np.eye(3)[[0, 2]]
+    uniform = np.full((2, 3), 1 / 3)
+    assert loss_value(onehot, onehot, "mse") == 0.0
+    assert loss_value(uniform, onehot, "mse") == pytest.approx(6 / 9)  # (2/3)^2 + 2 (1/3)^2
+    assert loss_value(uniform, onehot, "cross_entropy") == pytest.approx(np.log2(3))
+    assert loss_value(np.eye(3)[[1, 1]], onehot, "cross_entropy") == pytest.approx(-np.log2(1e-10))
+
+
+def test_interpret_maps_make_every_class_predictable(rng: np.random.Generator) -> None:
+    np.testing.assert_array_equal(interpret_matrix("min2").argmax(axis=1), [0, 1, 2, 2])
+    np.testing.assert_array_equal(interpret_matrix("mod3").argmax(axis=1), [0, 1, 2, 0])
+    x = rng.uniform(0, np.pi, (400, 2))
+    for interpret in ("min2", "mod3"):
+        winners = set()
+        for _ in range(5):
+            w = rng.uniform(0, 2 * np.pi, 4)
+            winners |= set(class_probabilities(x, w, interpret=interpret).argmax(axis=1).tolist())
+        assert winners == {0, 1, 2}
+    with pytest.raises(ParameterError, match=r"^interpret=\(0, 1, 1, 0\) is invalid"):
+        VQCClassifier(interpret=(0, 1, 1, 0)).fit(*road_slopes(10, rng))
+
+
+def test_training_lowers_objective_and_classifies(rng: np.random.Generator) -> None:
+    X, y = road_slopes(300, rng)
+    Xt, yt = road_slopes(300, rng)
+    clf = VQCClassifier().fit(X, y)
+    history = clf.objective_history_
+    assert len(history) == 30  # COBYLA maxiter counts objective evaluations
+    assert min(history) < history[0] - 0.2
+    assert clf.objective_ == pytest.approx(min(history))
+    # chance is 1/3; 4 angles on a fixed feature map cannot fit these classes exactly
+    # (about 0.85-0.9 at best on this data), so ask for clearly better than chance
+    assert clf.score(X, y) >= 0.7
+    assert clf.score(Xt, yt) >= 0.7
+    assert set(clf.predict(Xt).tolist()) == {0, 1, 2}
+
+
+def test_seeded_training_is_deterministic(rng: np.random.Generator) -> None:
+    X, y = road_slopes(60, rng)
+    a = VQCClassifier(maxiter=10, seed=5).fit(X, y)
+    b = VQCClassifier(maxiter=10, seed=5).fit(X, y)
+    np.testing.assert_array_equal(a.weights_, b.weights_)
+    assert a.objective_history_ == b.objective_history_
+    c = VQCClassifier(maxiter=10, seed=6).fit(X, y)
+    assert not np.array_equal(a.initial_weights_, c.initial_weights_)
+    # with shots, training and prediction are seeded too
+    s1 = VQCClassifier(maxiter=10, shots=256, seed=5).fit(X, y)
+    s2 = VQCClassifier(maxiter=10, shots=256, seed=5).fit(X, y)
+    assert s1.objective_history_ == s2.objective_history_
+    p = s1.basis_probabilities(X)
+    np.testing.assert_array_equal(p, s2.basis_probabilities(X))
+    np.testing.assert_allclose(p * 256, np.round(p * 256), atol=1e-9)
+
+
+def test_noise_at_prediction(rng: np.random.Generator) -> None:
+    X, y = road_slopes(80, rng)
+    clf = VQCClassifier(maxiter=15).fit(X, y)
+    ideal = clf.predict_proba(X)
+    zero = clf.predict_proba(X, noise=NoiseSpec("depolarizing", 0.0))
+    np.testing.assert_allclose(zero, ideal, atol=1e-10)
+    assert clf.score(X, y) == np.mean(clf.predict(X, noise=NoiseSpec("bit-flip", 0.0)) == y)
+    full = NoiseSpec("depolarizing", 1.0)
+    np.testing.assert_allclose(clf.basis_probabilities(X, noise=full), 0.25, atol=1e-12)
+    np.testing.assert_allclose(clf.predict_proba(X, noise=full), [[0.25, 0.25, 0.5]] * 80)
+
+
+def test_training_under_full_depolarizing_sees_a_flat_objective(
+    rng: np.random.Generator,
+) -> None:
+    X, y = road_slopes(40, rng)
+    clf = VQCClassifier(maxiter=8, train_noise=NoiseSpec("depolarizing", 1.0)).fit(X, y)
+    expected = loss_value(np.tile([0.25, 0.25, 0.5], (40, 1)), np.eye(3)[y], "mse")
+    np.testing.assert_allclose(clf.objective_history_, expected, atol=1e-12)
+
+
+@pytest.mark.skipif(not HAS_AER, reason="qiskit-aer not installed")
+def test_aer_backend_matches_numpy(rng: np.random.Generator) -> None:
+    x = rng.uniform(0, np.pi, (6, 2))
+    w = rng.uniform(0, 2 * np.pi, 4)
+    np.testing.assert_allclose(
+        basis_probabilities(x, w, backend="aer"), basis_probabilities(x, w), atol=1e-10
+    )
+
+
+def test_rows_with_a_missing_feature_get_the_majority_class(rng: np.random.Generator) -> None:
+    X, y = road_slopes(60, rng)
+    y[:30] = 2
+    X[:4, 1] = np.nan
+    clf = VQCClassifier(maxiter=6).fit(X, y)
+    assert clf.majority_class_ == 2
+    Xt = np.array([[np.nan, 1.0], [-1.0, np.nan], [-1.0, 1.0]])
+    assert clf.predict(Xt)[:2].tolist() == [2, 2]
+    np.testing.assert_allclose(clf.predict_proba(Xt)[:2], [np.bincount(y, minlength=3) / 60] * 2)
+    assert np.isnan(clf.basis_probabilities(Xt)[:2]).all()
+    with pytest.raises(InputError, match="^X: no row has both features finite"):
+        VQCClassifier().fit(np.full((3, 2), np.nan), [0, 1, 2])
+
+
+def test_input_errors(rng: np.random.Generator) -> None:
+    X, y = road_slopes(20, rng)
+    with pytest.raises(NotFittedError):
+        VQCClassifier().predict(X)
+    with pytest.raises(ParameterError, match=r"^X='<3 features>' is invalid: exactly 2 features"):
+        VQCClassifier().fit(np.column_stack([X, X[:, 0]]), y)
+    clf = VQCClassifier(maxiter=6).fit(X, y)
+    match = r"^X='<1 features>' is invalid: 2 features, as in fit$"
+    with pytest.raises(ParameterError, match=match):
+        clf.predict(X[:, :1])
+    with pytest.raises(ParameterError, match="^loss='hinge' is invalid"):
+        VQCClassifier(loss="hinge").fit(X, y)
+    with pytest.raises(ParameterError, match="^engine='torch' is invalid"):
+        VQCClassifier(engine="torch").fit(X, y)
+    match = "^train_noise=.* is invalid: None with engine='qiskit-ml'"
+    with pytest.raises(ParameterError, match=match):
+        VQCClassifier(engine="qiskit-ml", train_noise=NoiseSpec("bit-flip", 0.1)).fit(X, y)
+
+
+def test_feature_columns_pick_the_slopes_of_a_wider_table(rng: np.random.Generator) -> None:
+    X, y = road_slopes(40, rng)
+    wide = np.column_stack([X, rng.normal(size=(40, 2))])
+    a = VQCClassifier(maxiter=6).fit(X, y)
+    b = VQCClassifier(maxiter=6, feature_columns=(0, 1)).fit(wide, y)
+    np.testing.assert_array_equal(a.weights_, b.weights_)
+    np.testing.assert_allclose(a.predict_proba(X), b.predict_proba(wide))
+
+
+def test_sklearn_compatibility(rng: np.random.Generator) -> None:
+    X, y = road_slopes(90, rng)
+    clf = VQCClassifier(maxiter=10, scaling="arctan")
+    assert clf.get_params()["scaling"] == "arctan"
+    assert clf.set_params(loss="cross_entropy").loss == "cross_entropy"
+    twin = clone(clf)
+    assert twin.get_params() == clf.get_params() and not hasattr(twin, "weights_")
+    scores = cross_val_score(clf, X, y, cv=KFold(3, shuffle=False))
+    assert scores.shape == (3,) and np.all((scores >= 0) & (scores <= 1))
+    assert clf.__sklearn_tags__().input_tags.allow_nan
+
+
+def test_plot_objective_draws_the_history(rng: np.random.Generator) -> None:
+    clf = VQCClassifier(maxiter=7).fit(*road_slopes(30, rng))
+    ax = clf.plot_objective()
+    line = ax.get_lines()[0]
+    np.testing.assert_array_equal(line.get_xdata(), np.arange(1, 8))
+    np.testing.assert_array_equal(line.get_ydata(), clf.objective_history_)
+    assert ax.get_xlabel() == "objective evaluation (COBYLA)"
