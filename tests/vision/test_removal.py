@@ -120,3 +120,12 @@ def test_errors() -> None:
         remove_shadows(img.astype(np.float32), shadow)
     with pytest.raises(InputError, match=r"^shadow_mask: expected a bool or uint8 mask"):
         remove_shadows(img, shadow.astype(np.float32))
+
+
+def test_channel_medians_equal_numpy_median() -> None:
+    from qdcnn.vision.removal import channel_medians
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 10, 11, 1001):
+        values = rng.integers(0, 256, (n, 3)).astype(np.uint8)
+        np.testing.assert_allclose(channel_medians(values), np.median(values.astype(float), axis=0))
