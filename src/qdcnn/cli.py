@@ -10,17 +10,20 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from qdcnn.config import ShadowConfig
+from qdcnn.config import PipelineConfig, ShadowConfig
+from qdcnn.data.labels import DIRECTIONS
 from qdcnn.errors import QdcnnError
 
 T = TypeVar("T")
@@ -65,22 +68,42 @@ def report_error(message: str) -> None:
     err.print(f"[red]error:[/red] {message}", soft_wrap=True, markup=True)
 
 
+class ProgressBar:
+    """A progress bar on stderr, shown only when stderr is a terminal.
+
+    Use as a context manager and call :meth:`advance` per finished item, or
+    iterate with :func:`progress`.
+    """
+
+    def __init__(self, total: int, description: str) -> None:
+        self._bar = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            console=err,
+            transient=True,
+            disable=not err.is_terminal,
+        )
+        self._task = self._bar.add_task(description, total=total)
+
+    def __enter__(self) -> ProgressBar:
+        self._bar.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._bar.stop()
+
+    def advance(self, *_: object) -> None:
+        self._bar.advance(self._task)
+
+
 def progress(items: Iterable[T], total: int, description: str) -> Iterator[T]:
-    """Iterate with a progress bar on stderr (hidden when stderr is not a terminal)."""
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeRemainingColumn(),
-        console=err,
-        transient=True,
-        disable=not err.is_terminal,
-    )
-    with bar:
-        task = bar.add_task(description, total=total)
+    """Iterate with a :class:`ProgressBar`."""
+    with ProgressBar(total, description) as bar:
         for item in items:
             yield item
-            bar.advance(task)
+            bar.advance()
 
 
 def fail_on_error(exc: QdcnnError) -> typer.Exit:
@@ -203,6 +226,440 @@ def score_shadows_cmd(
             f"{s.nonshadow_error:.2f}  IoU {s.iou:.2f}  n {s.n}"
         )
     raise typer.Exit(1 if report.failures or report.scores is None else 0)
+
+
+@app.command("synth")
+def synth_cmd(
+    out_dir: Annotated[Path, typer.Option("--out", help="Output folder.")],
+    preset: Annotated[str, typer.Option(help="track1 | track2 | rain")] = "track1",
+    n: Annotated[int, typer.Option("--n", help="Number of frames.")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the generator.")] = 0,
+    width: Annotated[int, typer.Option(help="Frame width in pixels.")] = 320,
+    height: Annotated[int, typer.Option(help="Frame height in pixels.")] = 160,
+    layout: Annotated[str, typer.Option(help="udacity | shadows | carla | all")] = "all",
+    as_json: JsonOpt = False,
+) -> None:
+    """Render a synthetic drive with exact ground truth in the layouts real data use."""
+    from qdcnn.data.synthetic import generate_drive
+    from qdcnn.data.writers import write_carla, write_shadow_set, write_udacity
+    from qdcnn.errors import ParameterError
+
+    layouts = ("udacity", "shadows", "carla") if layout == "all" else (layout,)
+    try:
+        if any(lay not in ("udacity", "shadows", "carla") for lay in layouts):
+            raise ParameterError("layout", layout, "udacity, shadows, carla or all")
+        if not 1 <= n <= 1_000_000:
+            raise ParameterError("n", n, "an integer in [1, 1000000]")
+        scenes = generate_drive(preset, n, seed=seed, width=width, height=height)
+        written = {}
+        for lay in layouts:
+            target = out_dir / lay if len(layouts) > 1 else out_dir
+            if lay == "udacity":
+                written[lay] = str(write_udacity(scenes, target))
+            elif lay == "shadows":
+                written[lay] = str(write_shadow_set(scenes, target))
+            else:
+                written[lay] = str(write_carla(scenes, target))
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    counts = [int(sum(s.direction == d for s in scenes)) for d in range(3)]
+    result = {
+        "preset": preset,
+        "n": n,
+        "seed": seed,
+        "size": [width, height],
+        "written": written,
+        "directions": dict(zip(("left", "straight", "right"), counts, strict=True)),
+        "mean_shadow_fraction": float(sum(s.shadow_mask.mean() for s in scenes) / n),
+    }
+    if as_json:
+        emit(result)
+    else:
+        for lay, where in written.items():
+            out.print(f"{lay}: {where}")
+        out.print(
+            f"{n} frames, directions {result['directions']}, "
+            f"mean shadow fraction {result['mean_shadow_fraction']:.3f}"
+        )
+
+
+@app.command("train-shadows")
+def train_shadows_cmd(
+    data: Annotated[Path, typer.Option(help="Shadow set: DIR/images/* and DIR/masks/<stem>.png.")],
+    out_file: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
+    feature: Annotated[str, typer.Option(help="intensity | chromaticity")] = "intensity",
+    search_threshold: Annotated[
+        bool, typer.Option(help="Pick the threshold with the lowest training BER.")
+    ] = True,
+    as_json: JsonOpt = False,
+) -> None:
+    """Train a UU-dagger shadow centroid (and threshold) on images with masks."""
+    from qdcnn.experiments.shadow_batch import load_shadow_set
+    from qdcnn.vision.shadows import train_shadow_model
+
+    try:
+        images, masks, failures = load_shadow_set(data)
+        for f in failures:
+            report_error(f.error)
+        cfg = ShadowConfig(feature=feature, shots=None)  # type: ignore[arg-type]
+        grid = tuple(float(t) for t in (0.75, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999))
+        model = train_shadow_model(
+            images, masks, cfg, thresholds=grid if search_threshold else None
+        )
+        model.save(out_file)
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    result = {
+        "model": str(out_file),
+        "feature": model.feature,
+        "centroid": model.centroid,
+        "threshold": model.threshold,
+        **model.meta,
+        "failures": [f.to_dict() for f in failures],
+    }
+    if as_json:
+        emit(result)
+    else:
+        out.print(
+            f"centroid {model.centroid:.2f}, threshold {model.threshold}, written to {out_file}"
+        )
+    raise typer.Exit(1 if failures else 0)
+
+
+def _evaluation_config(lanes: str, seed: int) -> PipelineConfig:
+    from qdcnn.config import LaneConfig
+    from qdcnn.errors import ParameterError
+
+    if lanes not in ("udacity", "paper"):
+        raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
+    lane_cfg = LaneConfig.udacity() if lanes == "udacity" else LaneConfig()
+    return replace(PipelineConfig(seed=seed), lanes=lane_cfg)
+
+
+@app.command("evaluate")
+def evaluate_cmd(
+    data: Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")],
+    method: Annotated[
+        str, typer.Option(help="A method name or 'all' (the paper's table).")
+    ] = "all",
+    folds: Annotated[int, typer.Option(help="Contiguous cross-validation folds.")] = 5,
+    gap: Annotated[
+        int, typer.Option(help="Frames left out of training on each side of a test block.")
+    ] = 5,
+    lanes: Annotated[
+        str, typer.Option(help="Lane settings: udacity (1 smoothing pass) | paper (30).")
+    ] = "udacity",
+    epochs: Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 25).")] = 25,
+    weights: Annotated[
+        Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random choice.")] = 0,
+    cache: Annotated[bool, typer.Option(help="Reuse cached lane features.")] = True,
+    as_json: JsonOpt = False,
+) -> None:
+    """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    from qdcnn.experiments.datasets import load_frameset
+    from qdcnn.experiments.evaluate import (
+        ALL_METHODS,
+        DNN_METHODS,
+        QUANTUM_METHODS,
+        check_method,
+        contiguous_folds,
+        evaluate_features,
+    )
+    from qdcnn.experiments.features import compute_features
+
+    try:
+        check_method(method)
+        cfg = _evaluation_config(lanes, seed)
+        frames = load_frameset(data, seed=seed)
+        methods = list(ALL_METHODS if method == "all" else [method])
+        if method == "all" and not _has_torch():
+            methods = [m for m in methods if m not in DNN_METHODS]
+            report_error(
+                "skipping dnn-* methods: torch is not installed (pip install 'qdcnn[dnn]')"
+            )
+        labels = frames.labels(cfg.labels)
+        contiguous_folds(len(frames), folds, gap)  # validates folds and gap before any work
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    for problem in frames.problems:
+        report_error(str(problem))
+    quantum = [m for m in methods if m in QUANTUM_METHODS]
+    failures: list[Any] = []
+    results = []
+    try:
+        if quantum:
+            groupings = sorted({QUANTUM_METHODS[m][0] for m in quantum})
+            with ProgressBar(len(frames), f"lane features ({frames.name})") as bar:
+                table = compute_features(
+                    frames, cfg, groupings, use_cache=cache, on_frame=bar.advance
+                )
+            failures = list(table.failures)
+            keep = table.readable
+            for m in quantum:
+                grouping = QUANTUM_METHODS[m][0]
+                res = evaluate_features(
+                    m,
+                    frames.name,
+                    table.features[grouping][keep],
+                    labels[keep],
+                    config=cfg,
+                    folds=folds,
+                    gap=gap,
+                    frames_without_lines=table.frames_without_lines(grouping),
+                )
+                res.extra["pipeline_ms_per_frame"] = 1e3 * table.seconds_per_frame
+                results.append(res)
+                if as_json:
+                    emit(res.to_dict())
+        for m in (m for m in methods if m in DNN_METHODS):
+            from qdcnn.experiments.evaluate_dnn import evaluate_cnn
+
+            res = evaluate_cnn(
+                m,
+                frames,
+                labels,
+                folds=folds,
+                gap=gap,
+                epochs=epochs,
+                weights=weights,
+                seed=seed,
+                progress=not as_json,
+            )
+            failures.extend(res.extra.pop("failures", []))
+            results.append(res)
+            if as_json:
+                emit(res.to_dict())
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    for f in failures:
+        report_error(f.error)
+    if as_json:
+        if failures:
+            emit({"summary": True, "failures": [f.to_dict() for f in failures]})
+    else:
+        shown = Table(
+            "method",
+            "accuracy",
+            "± std",
+            "majority",
+            "no lines",
+            "seconds",
+            title=f"{frames.name}: {len(frames)} frames, {folds} contiguous folds (gap {gap})",
+        )
+        for r in results:
+            shown.add_row(
+                r.method,
+                f"{r.accuracy:.3f}",
+                f"{r.accuracy_std:.3f}",
+                f"{r.majority_baseline:.3f}",
+                str(r.frames_without_lines),
+                f"{r.seconds:.1f}",
+            )
+        out.print(shown)
+    raise typer.Exit(1 if failures else 0)
+
+
+def _has_torch() -> bool:
+    from qdcnn._optional import HAS_TORCH
+
+    return HAS_TORCH
+
+
+def _train_default_direction_model(method: str, seed: int) -> Any:
+    """A direction model trained on a synthetic track1 drive, for use without a model file."""
+    from qdcnn.experiments.datasets import load_frameset
+    from qdcnn.experiments.direction_model import default_config, train_direction_model
+    from qdcnn.experiments.evaluate import QUANTUM_METHODS
+    from qdcnn.experiments.features import compute_features
+
+    cfg = replace(default_config(), seed=seed)
+    frames = load_frameset("synthetic:track1:300", seed=seed)
+    grouping = QUANTUM_METHODS[method][0]
+    table = compute_features(frames, cfg, (grouping,))
+    return train_direction_model(
+        method, table.features[grouping], frames.labels(cfg.labels), cfg, "synthetic:track1:300"
+    )
+
+
+@app.command("train-direction")
+def train_direction_cmd(
+    data: Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")],
+    out_file: Annotated[Path, typer.Option("--out", help="Model file to write.")],
+    method: Annotated[str, typer.Option(help="One of the six quantum methods.")] = "image-split-uu",
+    lanes: Annotated[str, typer.Option(help="udacity (1 smoothing pass) | paper (30)")] = "udacity",
+    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Train a direction classifier on all frames of a dataset and save it."""
+    from qdcnn.errors import ParameterError
+    from qdcnn.experiments.datasets import load_frameset
+    from qdcnn.experiments.direction_model import train_direction_model
+    from qdcnn.experiments.evaluate import QUANTUM_METHODS
+    from qdcnn.experiments.features import compute_features
+
+    try:
+        if method not in QUANTUM_METHODS:
+            raise ParameterError("method", method, "one of " + ", ".join(QUANTUM_METHODS))
+        cfg = _evaluation_config(lanes, seed)
+        frames = load_frameset(data, seed=seed)
+        labels = frames.labels(cfg.labels)
+        grouping = QUANTUM_METHODS[method][0]
+        with ProgressBar(len(frames), f"lane features ({frames.name})") as bar:
+            table = compute_features(frames, cfg, (grouping,), on_frame=bar.advance)
+        keep = table.readable
+        model = train_direction_model(
+            method, table.features[grouping][keep], labels[keep], cfg, data
+        )
+        model.save(out_file)
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    for f in table.failures:
+        report_error(f.error)
+    train_acc = float(np.mean(model.predict(table.features[grouping][keep]) == labels[keep]))
+    result = {
+        "model": str(out_file),
+        "method": method,
+        "data": data,
+        "n": int(keep.sum()),
+        "training_accuracy": train_acc,
+        "failures": [f.to_dict() for f in table.failures],
+    }
+    if as_json:
+        emit(result)
+    else:
+        out.print(
+            f"{method} trained on {int(keep.sum())} frames of {frames.name} "
+            f"(training accuracy {train_acc:.3f}); written to {out_file}"
+        )
+    raise typer.Exit(1 if table.failures else 0)
+
+
+@app.command("detect-lanes")
+def detect_lanes_cmd(
+    paths: Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")],
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for overlays and predictions.")],
+    model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
+    method: Annotated[str, typer.Option(help="Method when no model is given.")] = "image-split-uu",
+    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Lane overlays and a left/straight/right decision per frame.
+
+    Without --model, a model of --method is trained first on a synthetic track1
+    drive (300 frames) and the output says so.
+    """
+    from qdcnn.data.images import read_image, write_image
+    from qdcnn.experiments.batch import run_batch
+    from qdcnn.experiments.direction_model import DirectionModel
+    from qdcnn.experiments.shadow_batch import plan_detection
+    from qdcnn.pipeline import process_frame
+    from qdcnn.quantum.sampling import as_generator
+    from qdcnn.vision.overlays import draw_lane_overlay
+
+    try:
+        if model is not None:
+            direction_model = DirectionModel.load(model)
+        else:
+            from qdcnn.errors import ParameterError
+            from qdcnn.experiments.evaluate import QUANTUM_METHODS
+
+            if method not in QUANTUM_METHODS:
+                raise ParameterError("method", method, "one of " + ", ".join(QUANTUM_METHODS))
+            err.print(f"[dim]no --model: training {method} on a synthetic track1 drive[/dim]")
+            direction_model = _train_default_direction_model(method, seed)
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    plan = plan_detection(paths)
+    failures = list(plan.failures)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rng = as_generator(seed)
+    cfg, grouping = direction_model.config, direction_model.grouping
+
+    def work(path: Path) -> dict[str, Any]:
+        image = read_image(path)
+        t0 = time.perf_counter()
+        frame = process_frame(image, cfg, (grouping,), rng=rng)
+        lanes = frame.lanes[grouping]
+        direction = DIRECTIONS[int(direction_model.predict(lanes.features)[0])]
+        seconds = time.perf_counter() - t0
+        overlay = write_image(
+            out_dir / f"{path.stem}_lanes.png",
+            draw_lane_overlay(image, frame.segments, lanes, direction, roi=cfg.lanes.roi),
+        )
+        return {
+            "file": str(path),
+            "direction": direction,
+            "status": lanes.status,
+            "features": [None if np.isnan(v) else float(v) for v in lanes.features],
+            "seconds": seconds,
+            "overlay": str(overlay),
+        }
+
+    rows = []
+    table = Table("file", "direction", "lines", "ms", title=f"lanes: {direction_model.method}")
+    for outcome in progress(run_batch(plan.images, work), len(plan.images), "detect-lanes"):
+        if outcome.result is not None:
+            rows.append(outcome.result)
+            if as_json:
+                emit(outcome.result)
+            else:
+                r = outcome.result
+                table.add_row(
+                    Path(r["file"]).name, r["direction"], r["status"], f"{1e3 * r['seconds']:.2f}"
+                )
+        elif outcome.failure is not None:
+            failures.append(outcome.failure)
+            report_error(outcome.failure.error)
+            if as_json:
+                emit(outcome.failure.to_dict())
+    with open(out_dir / "predictions.csv", "w", encoding="utf-8") as fh:
+        fh.write("file,direction,status\n")
+        for r in rows:
+            fh.write(f"{r['file']},{r['direction']},{r['status']}\n")
+    summary = {
+        "summary": True,
+        "method": direction_model.method,
+        "trained_on": direction_model.trained_on,
+        "n_images": len(rows),
+        "n_failed": len(failures),
+        "failures": [f.to_dict() for f in failures],
+        "out": str(out_dir),
+    }
+    if as_json:
+        emit(summary)
+    else:
+        out.print(table)
+        out.print(
+            f"{len(rows)} overlays and predictions.csv in {out_dir}; {len(failures)} failed; "
+            f"model {direction_model.method} trained on {direction_model.trained_on}"
+        )
+    raise typer.Exit(1 if failures or not rows else 0)
+
+
+@app.command("demo")
+def demo_cmd(
+    out_dir: Annotated[
+        Path, typer.Option("--out", help="Folder for index.html and figures.")
+    ] = Path("demo-output"),
+    quick: Annotated[bool, typer.Option(help="Fewer scenes and repeats.")] = False,
+    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Run every stage on built-in synthetic scenes and write an HTML report."""
+    from qdcnn.experiments.report import run_demo
+
+    try:
+        result = run_demo(
+            out_dir, quick=quick, seed=seed, say=lambda m: err.print(f"[dim]{m}[/dim]")
+        )
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    if as_json:
+        emit(result)
+    else:
+        out.print(f"report: {result['html']} (numbers in {result['json']})")
 
 
 @bench_app.command("shadows")

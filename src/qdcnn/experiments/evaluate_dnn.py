@@ -1,0 +1,99 @@
+"""The paper's DNN row: CNN baselines under the same contiguous folds as the quantum methods."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn.experiments.batch import Failure, run_batch
+from qdcnn.experiments.datasets import FrameSet
+from qdcnn.experiments.evaluate import MethodResult, contiguous_folds, majority_accuracy, summarise
+
+ARCH_OF: dict[str, Literal["pilotnet", "resnet50"]] = {
+    "dnn-pilotnet": "pilotnet",
+    "dnn-resnet50": "resnet50",
+}
+
+
+def load_images(frames: FrameSet) -> tuple[NDArray[np.uint8], NDArray[np.bool_], list[Failure]]:
+    """All frames as one ``(N, H, W, 3)`` array; unreadable frames are zero and listed."""
+    first: NDArray[np.uint8] | None = None
+    images: list[NDArray[np.uint8] | None] = []
+    failures: list[Failure] = []
+    for outcome in run_batch(range(len(frames)), frames.image, name=lambda i: frames.sources[i]):
+        if outcome.result is not None and (first is None or outcome.result.shape == first.shape):
+            first = outcome.result if first is None else first
+            images.append(outcome.result)
+        else:
+            images.append(None)
+            if outcome.failure is not None:
+                failures.append(outcome.failure)
+            else:
+                shape = None if outcome.result is None else outcome.result.shape
+                failures.append(
+                    Failure(
+                        frames.sources[outcome.item],
+                        f"{frames.sources[outcome.item]}: frame size {shape} differs from "
+                        f"the first frame's {None if first is None else first.shape}",
+                    )
+                )
+    if first is None:
+        return np.zeros((0, 1, 1, 3), np.uint8), np.zeros(len(frames), bool), failures
+    readable = np.array([im is not None for im in images])
+    stack = np.zeros((len(frames), *first.shape), np.uint8)
+    for i, im in enumerate(images):
+        if im is not None:
+            stack[i] = im
+    return stack, readable, failures
+
+
+def evaluate_cnn(
+    method: str,
+    frames: FrameSet,
+    labels: NDArray[np.int64],
+    *,
+    folds: int = 5,
+    gap: int = 5,
+    epochs: int = 25,
+    weights: Path | None = None,
+    seed: int = 0,
+    progress: bool = True,
+) -> MethodResult:
+    """Train and test a CNN baseline on each contiguous fold; same folds as the quantum methods."""
+    from qdcnn.models.training import CNNDirectionClassifier
+
+    t0 = time.perf_counter()
+    images, readable, failures = load_images(frames)
+    keep = np.flatnonzero(readable)
+    x, y = images[keep], labels[keep]
+    predictions, majority, histories = [], [], []
+    for train, test in contiguous_folds(len(y), folds, gap):
+        model = CNNDirectionClassifier(
+            ARCH_OF[method], epochs=epochs, weights=weights, seed=seed, progress=progress
+        )
+        model.fit(x[train], y[train])
+        predictions.append((test, np.asarray(model.predict(x[test]), dtype=np.int64)))
+        majority.append(majority_accuracy(y[train], y[test]))
+        histories.append(getattr(model, "history_", []))
+    result = summarise(
+        method,
+        frames.name,
+        y,
+        predictions,
+        majority,
+        frames_without_lines=0,
+        seconds=time.perf_counter() - t0,
+        extra={
+            "folds": folds,
+            "gap": gap,
+            "epochs": epochs,
+            "weights": None if weights is None else str(weights),
+            "epochs_run": [len(h) for h in histories],
+            "failures": failures,
+        },
+    )
+    return result
