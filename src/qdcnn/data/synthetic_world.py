@@ -1,0 +1,644 @@
+"""World model of the synthetic road scenes: presets, road geometry, camera and scenery.
+
+Everything here is geometry and random layout in metres; :mod:`qdcnn.data.synthetic_render`
+turns one camera pose in such a world into pixels. World coordinates are ``(x, z)`` on the
+ground plane (``z`` is the initial driving direction, ``x`` to its right). A heading ``h``
+points along ``(sin h, cos h)``, so a growing heading turns right; the curvature of the road
+is ``dh/ds`` (1/m), positive for a right bend.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+FloatArray = NDArray[np.float64]
+RGB = tuple[float, float, float]
+
+ROUTE_STEP = 0.5  # metres between route samples
+CAMERA_HEIGHT = 1.5  # metres above the road
+VIEW_DISTANCE = 250.0  # farthest ground drawn (metres)
+SCENERY_DISTANCE = 140.0  # farthest roadside objects drawn (metres)
+
+
+@dataclass(frozen=True)
+class Style:
+    """Look and statistics of one preset (colours are RGB in [0, 1])."""
+
+    name: str
+    bend_steering: tuple[float, float]  # |steering| range of bends
+    road_width: tuple[float, float]
+    hill_height: tuple[float, float]  # height (m) reached by the ground far ahead; < 0 descends
+    hill_distance: tuple[float, float]  # distance (m) over which it is reached
+    pitch: float  # horizon jitter as a fraction of the frame height
+    sky_top: RGB
+    sky_horizon: RGB
+    asphalt: RGB
+    asphalt_grain: float
+    terrain: tuple[RGB, RGB]
+    terrain_grain: float
+    line_colours: tuple[RGB, ...]
+    line_width: tuple[float, float]
+    line_inset: tuple[float, float]
+    centre_dash_prob: float
+    edge_kind: str  # "curb" (red/white), "gravel" or "sidewalk"
+    edge_prob: float
+    background: str  # "lake", "mountain" or "city"
+    hills: tuple[float, float]  # amplitude of the distant skyline (radians)
+    tree_kind: str  # "pine" or "broadleaf"
+    foliage: tuple[RGB, ...]
+    near_trees: float  # trees per 100 m and side within a few metres of the road
+    far_trees: float  # trees per 100 m and side further out
+    poles: float  # poles per 100 m and side
+    buildings: float  # buildings per 100 m and side
+    building_colours: tuple[RGB, ...]
+    sun_prob: float  # probability that the sun is out (cast shadows at all)
+    sun_elevation: tuple[float, float]  # degrees
+    shadow_ratio: tuple[float, float]  # shadowed / lit intensity
+    shadow_tint: RGB  # relative darkening per channel (blue darkened least)
+    penumbra: float  # shadow edge blur (Gaussian sigma, metres on the ground)
+    tar_patches: float  # dark road repairs per 100 m
+    dark_bushes: float  # dark vegetation patches per 100 m and side
+    puddles: float  # puddles per 100 m
+    wet: float  # specular reflectance of the road (0 = dry)
+    haze_distance: float  # metres
+    hood: bool
+    rain: bool
+    speed_mph: float
+
+
+STYLES: dict[str, Style] = {
+    "track1": Style(
+        name="track1",
+        bend_steering=(0.15, 0.45),
+        road_width=(7.5, 9.0),
+        hill_height=(-1.5, 2.5),
+        hill_distance=(60.0, 120.0),
+        pitch=0.015,
+        sky_top=(0.30, 0.50, 0.86),
+        sky_horizon=(0.78, 0.86, 0.95),
+        asphalt=(0.43, 0.43, 0.44),
+        asphalt_grain=0.22,
+        terrain=((0.63, 0.55, 0.38), (0.55, 0.58, 0.27)),
+        terrain_grain=0.18,
+        line_colours=((0.88, 0.76, 0.22), (0.86, 0.72, 0.18), (0.92, 0.92, 0.88)),
+        line_width=(0.14, 0.22),
+        line_inset=(0.15, 0.45),
+        centre_dash_prob=0.0,
+        edge_kind="curb",
+        edge_prob=0.45,
+        background="lake",
+        hills=(0.02, 0.06),
+        tree_kind="pine",
+        foliage=((0.20, 0.33, 0.14), (0.25, 0.38, 0.16), (0.17, 0.27, 0.13)),
+        near_trees=1.2,
+        far_trees=14.0,
+        poles=0.6,
+        buildings=0.0,
+        building_colours=((0.6, 0.58, 0.55),),
+        sun_prob=0.5,
+        sun_elevation=(55.0, 75.0),
+        shadow_ratio=(0.40, 0.60),
+        shadow_tint=(1.0, 0.96, 0.84),
+        penumbra=0.08,
+        tar_patches=0.0,
+        dark_bushes=1.0,
+        puddles=0.0,
+        wet=0.0,
+        haze_distance=600.0,
+        hood=True,
+        rain=False,
+        speed_mph=30.19,
+    ),
+    "track2": Style(
+        name="track2",
+        bend_steering=(0.30, 0.80),
+        road_width=(7.0, 8.5),
+        hill_height=(-10.0, 12.0),
+        hill_distance=(35.0, 70.0),
+        pitch=0.025,
+        sky_top=(0.16, 0.32, 0.78),
+        sky_horizon=(0.58, 0.70, 0.90),
+        asphalt=(0.45, 0.45, 0.48),
+        asphalt_grain=0.20,
+        terrain=((0.38, 0.32, 0.22), (0.50, 0.40, 0.20)),
+        terrain_grain=0.25,
+        line_colours=((0.86, 0.70, 0.18), (0.90, 0.76, 0.25), (0.88, 0.88, 0.84)),
+        line_width=(0.12, 0.20),
+        line_inset=(0.15, 0.40),
+        centre_dash_prob=0.0,
+        edge_kind="gravel",
+        edge_prob=0.8,
+        background="mountain",
+        hills=(0.06, 0.20),
+        tree_kind="broadleaf",
+        foliage=((0.55, 0.36, 0.13), (0.40, 0.32, 0.12), (0.28, 0.33, 0.13), (0.62, 0.45, 0.16)),
+        near_trees=12.0,
+        far_trees=14.0,
+        poles=4.0,
+        buildings=0.6,
+        building_colours=((0.62, 0.60, 0.56), (0.55, 0.38, 0.30), (0.70, 0.66, 0.58)),
+        sun_prob=1.0,
+        sun_elevation=(25.0, 50.0),
+        shadow_ratio=(0.28, 0.50),
+        shadow_tint=(1.0, 0.95, 0.80),
+        penumbra=0.10,
+        tar_patches=5.0,
+        dark_bushes=6.0,
+        puddles=0.0,
+        wet=0.0,
+        haze_distance=450.0,
+        hood=True,
+        rain=False,
+        speed_mph=20.0,
+    ),
+    "rain": Style(
+        name="rain",
+        bend_steering=(0.20, 0.60),
+        road_width=(7.0, 8.0),
+        hill_height=(-1.5, 1.5),
+        hill_distance=(60.0, 120.0),
+        pitch=0.015,
+        sky_top=(0.40, 0.42, 0.46),
+        sky_horizon=(0.62, 0.64, 0.67),
+        asphalt=(0.22, 0.22, 0.23),
+        asphalt_grain=0.12,
+        terrain=((0.30, 0.33, 0.25), (0.36, 0.36, 0.32)),
+        terrain_grain=0.15,
+        line_colours=((0.90, 0.90, 0.88), (0.85, 0.75, 0.30)),
+        line_width=(0.12, 0.16),
+        line_inset=(0.25, 0.45),
+        centre_dash_prob=0.4,
+        edge_kind="sidewalk",
+        edge_prob=0.9,
+        background="city",
+        hills=(0.03, 0.10),
+        tree_kind="broadleaf",
+        foliage=((0.20, 0.27, 0.15), (0.24, 0.30, 0.17)),
+        near_trees=3.0,
+        far_trees=4.0,
+        poles=3.0,
+        buildings=3.0,
+        building_colours=((0.55, 0.52, 0.48), (0.45, 0.40, 0.36), (0.62, 0.60, 0.57)),
+        sun_prob=0.25,
+        sun_elevation=(30.0, 55.0),
+        shadow_ratio=(0.50, 0.68),
+        shadow_tint=(1.0, 0.97, 0.90),
+        penumbra=0.30,
+        tar_patches=0.5,
+        dark_bushes=0.5,
+        puddles=6.0,
+        wet=0.35,
+        haze_distance=90.0,
+        hood=False,
+        rain=True,
+        speed_mph=18.0,
+    ),
+}
+
+
+@dataclass(frozen=True)
+class Route:
+    """Road centreline sampled every :data:`ROUTE_STEP` metres of arc length from ``s0``."""
+
+    s0: float
+    curvature: FloatArray
+    heading: FloatArray
+    x: FloatArray
+    z: FloatArray
+    width: float
+
+    @property
+    def s(self) -> FloatArray:
+        return self.s0 + ROUTE_STEP * np.arange(self.curvature.size, dtype=np.float64)
+
+    @property
+    def s_end(self) -> float:
+        return self.s0 + ROUTE_STEP * (self.curvature.size - 1)
+
+    @cached_property
+    def kdtree(self) -> cKDTree:
+        return cKDTree(np.stack([self.x, self.z], axis=1))
+
+    def pose(self, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Centre ``x``, ``z`` and heading at arc lengths ``s`` (linear interpolation)."""
+        grid = self.s
+        return (np.interp(s, grid, self.x), np.interp(s, grid, self.z),
+                np.interp(s, grid, self.heading))
+
+    def offset(self, s: FloatArray, d: float | FloatArray) -> tuple[FloatArray, FloatArray]:
+        """World points at lateral offset ``d`` (metres, positive right) from the centreline."""
+        x, z, h = self.pose(s)
+        return x + d * np.cos(h), z - d * np.sin(h)
+
+
+def build_route(curvature: FloatArray, s0: float, width: float) -> Route:
+    """Integrate a curvature profile (sampled every :data:`ROUTE_STEP` m from ``s0``)."""
+    k = np.asarray(curvature, dtype=np.float64)
+    heading = np.concatenate([[0.0], np.cumsum(0.5 * (k[1:] + k[:-1]) * ROUTE_STEP)])
+    i0 = round(-s0 / ROUTE_STEP)
+    heading -= heading[min(max(i0, 0), k.size - 1)]  # heading 0 at s = 0
+    mid = heading[:-1] + 0.5 * np.diff(heading)
+    x = np.concatenate([[0.0], np.cumsum(np.sin(mid) * ROUTE_STEP)])
+    z = np.concatenate([[0.0], np.cumsum(np.cos(mid) * ROUTE_STEP)])
+    j = min(max(i0, 0), k.size - 1)
+    return Route(s0, k, heading, x - x[j], z - z[j], width)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera ``CAMERA_HEIGHT`` above the road, pitched along the road at the car.
+
+    The ground ahead rises by ``hill * r**2 / (1 + r**2)`` metres at distance ``Z``
+    (``r = Z / hill_distance``): a bounded hill (``hill > 0``) or dip (``hill < 0``).
+    """
+
+    width: int
+    height: int
+    horizon: float  # image row of the flat-ground horizon
+    hill: float
+    hill_distance: float
+
+    @property
+    def fx(self) -> float:
+        return 0.6 * self.width
+
+    @property
+    def fy(self) -> float:
+        return 1.2 * self.height
+
+    @property
+    def cx(self) -> float:
+        return (self.width - 1) / 2.0
+
+    def ground_height(self, z: FloatArray) -> FloatArray:
+        r2 = (np.asarray(z, dtype=np.float64) / self.hill_distance) ** 2
+        return np.asarray(self.hill * r2 / (1.0 + r2))
+
+    def row(self, z: FloatArray, above: float | FloatArray = 0.0) -> FloatArray:
+        """Image row of a point ``above`` metres over the ground at depth ``z``."""
+        z = np.asarray(z, dtype=np.float64)
+        return np.asarray(
+            self.horizon + self.fy * (CAMERA_HEIGHT - self.ground_height(z) - above) / z
+        )
+
+    def column(self, x: FloatArray, z: FloatArray) -> FloatArray:
+        return np.asarray(self.cx + self.fx * np.asarray(x) / np.asarray(z))
+
+    def visible_ground(self) -> tuple[float, float, FloatArray, FloatArray]:
+        """Depth where the visible ground ends, its row, and a (row, depth) table to invert."""
+        zs = np.geomspace(0.5, VIEW_DISTANCE, 768)
+        rows = self.row(zs)
+        rising = np.flatnonzero(np.diff(rows) >= 0.0)  # beyond a crest the ground is hidden
+        end = int(rising[0]) if rising.size else zs.size - 1
+        return float(zs[end]), float(rows[end]), rows[: end + 1][::-1], zs[: end + 1][::-1]
+
+
+@dataclass
+class PolySet:
+    """Closed polygons stored end to end: ``points[starts[i]: starts[i] + sizes[i]]``."""
+
+    points: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    sizes: NDArray[np.int_] = field(default_factory=lambda: np.zeros(0, dtype=int))
+    values: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def starts(self) -> NDArray[np.int_]:
+        return np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(int)
+
+    def __len__(self) -> int:
+        return int(self.sizes.size)
+
+    @staticmethod
+    def join(parts: list[tuple[FloatArray, FloatArray]]) -> PolySet:
+        """Concatenate batches ``(polygons (n, k, 2), values (n,))``."""
+        parts = [(p, v) for p, v in parts if len(p)]
+        if not parts:
+            return PolySet()
+        return PolySet(
+            np.concatenate([p.reshape(-1, 2) for p, _ in parts]),
+            np.concatenate([np.full(len(p), p.shape[1], dtype=int) for p, _ in parts]),
+            np.concatenate([np.asarray(v, dtype=np.float64) for _, v in parts]),
+        )
+
+
+@dataclass
+class Scenery:
+    """Roadside objects and ground decals of one take, in world coordinates."""
+
+    trees: dict[str, FloatArray] = field(default_factory=dict)
+    tree_outlines: FloatArray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    poles: dict[str, FloatArray] = field(default_factory=dict)
+    buildings: list[tuple[FloatArray, float, RGB]] = field(default_factory=list)
+    shadows: PolySet = field(default_factory=PolySet)  # values: darkness (1 - shadow/lit)
+    tar: PolySet = field(default_factory=PolySet)
+    bushes: PolySet = field(default_factory=PolySet)
+    puddles: PolySet = field(default_factory=PolySet)
+
+
+@dataclass
+class Take:
+    """A world to film: route, materials, sun and scenery (one scene or one drive)."""
+
+    style: Style
+    route: Route
+    scenery: Scenery
+    line_colour: RGB
+    line_width: float
+    line_inset: float
+    centre_dash: bool
+    edges: tuple[NDArray[np.bool_], NDArray[np.bool_]]  # edge strip present, per route sample
+    sun_out: bool
+    shadow_direction: float  # world heading of cast shadows
+    sun_elevation: float  # radians
+    skyline: FloatArray  # distant ridge elevation (radians) over 4096 headings
+    treeline: FloatArray
+    tint: FloatArray  # per-take colour gain of the materials
+    texture_offset: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class FrameState:
+    """Where the car is in a take, and what it records there."""
+
+    s: float
+    lateral: float  # metres right of the centreline
+    heading: float  # radians relative to the road direction
+    hill: float
+    hill_distance: float
+    pitch: float  # horizon shift as a fraction of the frame height
+    steering: float
+    curvature: float
+
+
+def periodic_noise(rng: np.random.Generator, n: int, beta: float) -> FloatArray:
+    """Zero-mean, unit-std periodic 1-D noise with a ``1/f**beta`` power spectrum."""
+    spec = np.fft.rfft(rng.standard_normal(n))
+    f = np.fft.rfftfreq(n)
+    f[0] = 1.0
+    spec /= f ** (beta / 2.0)
+    spec[0] = 0.0
+    out = np.fft.irfft(spec, n)
+    return np.asarray(out / (out.std() + 1e-12))
+
+
+def blobs(rng: np.random.Generator, n: int, points: int = 48,
+          roughness: float = 0.12) -> FloatArray:
+    """``n`` irregular closed outlines of about unit radius, shape ``(n, points, 2)``.
+
+    The radius is modulated by random harmonics 2..13 with amplitudes falling as ``1/k``.
+    """
+    t = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    k = np.arange(2, 14)
+    amp = roughness * rng.normal(size=(n, k.size)) * (2.0 / k)[None, :]
+    phase = rng.uniform(0, 2 * np.pi, (n, k.size))
+    kt = k[:, None] * t[None, :]  # cos(kt + phase) = cos kt cos phase - sin kt sin phase
+    r = 1.0 + (amp * np.cos(phase)) @ np.cos(kt) - (amp * np.sin(phase)) @ np.sin(kt)
+    r = np.clip(r, 0.5, 1.5)
+    return np.stack([r * np.cos(t), r * np.sin(t)], axis=-1)
+
+
+def shapes(centre: FloatArray, outline: FloatArray, along: FloatArray, across: FloatArray,
+           angle: FloatArray | float) -> FloatArray:
+    """Scale unit outlines ``(n, k, 2)`` to semi-axes (along, across) about ``centre (n, 2)``,
+    with the first axis along world heading ``angle``."""
+    angle = np.broadcast_to(np.asarray(angle, dtype=np.float64), (len(centre),))
+    fwd = np.stack([np.sin(angle), np.cos(angle)], -1)[:, None, :]
+    right = np.stack([np.cos(angle), -np.sin(angle)], -1)[:, None, :]
+    a = (outline[..., 0] * np.asarray(along)[:, None])[..., None]
+    b = (outline[..., 1] * np.asarray(across)[:, None])[..., None]
+    return np.asarray(centre[:, None, :] + a * fwd + b * right)
+
+
+def strips(a: FloatArray, b: FloatArray, width: FloatArray, pieces: int = 24) -> FloatArray:
+    """Rectangles of ``width`` around segments ``a``-``b`` (both ``(n, 2)``), the long
+    sides cut into ``pieces`` edges (so their projection bends with the ground)."""
+    v = b - a
+    nrm = np.stack([-v[:, 1], v[:, 0]], -1) / (np.linalg.norm(v, axis=1, keepdims=True) + 1e-9)
+    off = nrm * (np.asarray(width)[:, None] / 2)
+    t = np.linspace(0.0, 1.0, pieces + 1)[None, :, None]
+    side = a[:, None, :] + v[:, None, :] * t
+    return np.concatenate([side + off[:, None, :], (side - off[:, None, :])[:, ::-1]], axis=1)
+
+
+def _positions(rng: np.random.Generator, s_lo: float, s_hi: float,
+               per_100m: float) -> FloatArray:
+    n = rng.poisson(max(per_100m, 0.0) * max(s_hi - s_lo, 0.0) / 100.0)
+    return np.sort(rng.uniform(s_lo, s_hi, n))
+
+
+def _off_road(route: Route, x: FloatArray, z: FloatArray, clearance: float) -> NDArray[np.bool_]:
+    """Points at least ``clearance`` metres from every part of the route (loops included)."""
+    if x.size == 0:
+        return np.zeros(0, dtype=bool)
+    dist, _ = route.kdtree.query(np.stack([x, z], axis=1))
+    return np.asarray(dist >= clearance)
+
+
+def _roadside(rng: np.random.Generator, route: Route, s_lo: float, s_hi: float,
+              per_100m: float, gap: tuple[float, float],
+              clearance: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Random points on both sides, ``gap`` metres beyond the road edge: x, z, side."""
+    left, right = (_positions(rng, s_lo, s_hi, per_100m) for _ in range(2))
+    s = np.concatenate([left, right])
+    side = np.concatenate([np.full(left.size, -1.0), np.full(right.size, 1.0)])
+    d = side * (route.width / 2 + rng.uniform(*gap, s.size))
+    x, z = route.offset(s, d)
+    keep = _off_road(route, x, z, clearance)
+    return x[keep], z[keep], np.stack([s[keep], side[keep]])
+
+
+def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: float, s_hi: float,
+                 shadow_direction: float, sun_elevation: float, sun_out: bool) -> Scenery:
+    """Lay out trees, poles, buildings and ground decals along ``route`` between two arc lengths.
+
+    Cast shadows are ground polygons computed from each caster's shape and the sun; their
+    darkness (1 - shadowed/lit ratio) varies a little per caster around a per-take value.
+    """
+    sc = Scenery()
+    half = route.width / 2.0
+    cot = 1.0 / np.tan(sun_elevation)
+    sdir = np.array([np.sin(shadow_direction), np.cos(shadow_direction)])
+    base_ratio = rng.uniform(*style.shadow_ratio)
+    lo_r, hi_r = style.shadow_ratio
+
+    def darkness(n: int) -> FloatArray:
+        ratio = np.clip(base_ratio + rng.normal(0, 0.04, n), lo_r - 0.05, hi_r + 0.05)
+        return np.asarray(np.round((1.0 - ratio) * 50) / 50)  # a few levels: fewer fills
+
+    shadow_parts: list[tuple[FloatArray, FloatArray]] = []
+
+    # Trees: near ones cast shadows onto the road, far ones make the landscape.
+    near = _roadside(rng, route, s_lo, s_hi, style.near_trees, (1.2, 7.0), half + 1.0)
+    far = _roadside(rng, route, s_lo, s_hi, style.far_trees, (7.0, 45.0), half + 1.0)
+    x = np.concatenate([near[0], far[0]])
+    z = np.concatenate([near[1], far[1]])
+    n = x.size
+    pine = style.tree_kind == "pine"
+    height = rng.uniform(6.0, 13.0, n) if pine else rng.uniform(5.0, 11.0, n)
+    radius = height * (rng.uniform(0.18, 0.26, n) if pine else rng.uniform(0.28, 0.42, n))
+    crown = height - radius * (1.6 if pine else 1.0)  # canopy centre height
+    trunk_top = crown - radius * (1.2 if pine else 0.7)
+    sc.trees = {
+        "x": x, "z": z, "height": height, "radius": radius, "crown": crown,
+        "trunk_top": trunk_top, "trunk_w": rng.uniform(0.25, 0.45, n),
+        "colour": rng.integers(0, len(style.foliage), n).astype(np.float64),
+    }
+    sc.tree_outlines = _pine_outlines(rng, n) if pine else blobs(rng, n, 56, 0.13)
+    if not pine:
+        sc.tree_outlines[..., 1] *= 1.1
+    if sun_out and n:
+        base = np.stack([x, z], -1)
+        along = radius / np.sin(sun_elevation) * (1.3 if pine else 1.0)
+        canopy = shapes(base + sdir * (crown * cot)[:, None], blobs(rng, n, 64, 0.10 if pine
+                                                                     else 0.18),
+                        along, radius * (0.8 if pine else 1.0), shadow_direction)
+        dark = darkness(n)
+        trunk = strips(base, base + sdir * (trunk_top * cot)[:, None], sc.trees["trunk_w"])
+        shadow_parts += [(canopy, dark), (trunk, dark)]
+
+    # Poles (street lights / power poles), most with an arm reaching over the road.
+    px, pz, (ps, pside) = _roadside(rng, route, s_lo, s_hi, style.poles, (0.6, 2.5), half + 0.4)
+    _, _, h_road = route.pose(ps)
+    m = px.size
+    sc.poles = {
+        "x": px, "z": pz, "height": rng.uniform(6.0, 9.5, m), "width": rng.uniform(0.16, 0.26, m),
+        "arm": rng.uniform(1.2, 2.8, m) * (rng.random(m) < 0.7),
+        "arm_dir": h_road + np.where(pside < 0, np.pi / 2, -np.pi / 2),
+    }
+    if sun_out and m:
+        base = np.stack([px, pz], -1)
+        top = base + sdir * (sc.poles["height"] * cot)[:, None]
+        dark = darkness(m)
+        shadow_parts.append((strips(base, top, sc.poles["width"]), dark))
+        arm = sc.poles["arm"] > 0
+        a = sc.poles["arm_dir"][arm]
+        tip = top[arm] + sc.poles["arm"][arm, None] * np.stack([np.sin(a), np.cos(a)], -1)
+        shadow_parts.append((strips(top[arm], tip, sc.poles["width"][arm] * 0.8, 6), dark[arm]))
+
+    # Buildings: boxes set back from the road.
+    for side in (-1.0, 1.0):
+        for s in _positions(rng, s_lo, s_hi, style.buildings):
+            depth, length = rng.uniform(6.0, 14.0), rng.uniform(7.0, 18.0)
+            setback = half + rng.uniform(3.0, 8.0 if style.background == "city" else 14.0)
+            _, _, h = route.pose(np.array([s]))
+            angle = float(h[0]) + rng.normal(0, 0.05)
+            fwd = np.array([np.sin(angle), np.cos(angle)])
+            right = np.array([np.cos(angle), -np.sin(angle)])
+            cx_, cz_ = route.offset(np.array([s]), side * (setback + depth / 2))
+            c = np.array([cx_[0], cz_[0]])
+            corners = np.array([c + a_ * fwd * length / 2 + b_ * right * depth / 2
+                                for a_, b_ in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+            if not _off_road(route, corners[:, 0], corners[:, 1], half + 1.5).all():
+                continue
+            height_b = rng.uniform(6.0, 16.0 if style.background == "city" else 11.0)
+            colour = style.building_colours[int(rng.integers(len(style.building_colours)))]
+            sc.buildings.append((corners, height_b, colour))
+            if sun_out:
+                moved = corners + sdir * height_b * cot
+                hull = _convex_hull(np.concatenate([corners, moved]).astype(np.float32))
+                shadow_parts.append((densify(hull, 0.5)[None], darkness(1)))
+    sc.shadows = PolySet.join(shadow_parts)
+
+    # Ground decals: tar repairs on the road, dark bushes beside it, puddles on the road.
+    def on_road(per_100m: float, size: tuple[float, float], stretch: tuple[float, float],
+                rough: float) -> PolySet:
+        s = _positions(rng, s_lo, s_hi, per_100m)
+        d = rng.uniform(-half + 0.8, half - 0.8, s.size)
+        xx, zz = route.offset(s, d)
+        _, _, hh = route.pose(s)
+        r = rng.uniform(*size, s.size)
+        polys = shapes(np.stack([xx, zz], -1), blobs(rng, s.size, 32, rough),
+                       r * rng.uniform(*stretch, s.size), r, hh + rng.normal(0, 0.3, s.size))
+        return PolySet.join([(polys, np.ones(s.size))])
+
+    sc.tar = on_road(style.tar_patches, (0.5, 2.0), (1.0, 2.5), 0.25)
+    sc.puddles = on_road(style.puddles, (0.6, 2.0), (1.2, 3.0), 0.25)
+    bx, bz, _ = _roadside(rng, route, s_lo, s_hi, style.dark_bushes, (1.0, 9.0), half + 0.8)
+    r = rng.uniform(0.8, 2.5, bx.size)
+    sc.bushes = PolySet.join([(shapes(np.stack([bx, bz], -1), blobs(rng, bx.size, 32, 0.3),
+                                      r * rng.uniform(1.0, 2.0, bx.size), r,
+                                      rng.uniform(0, 2 * np.pi, bx.size)), np.ones(bx.size))])
+    return sc
+
+
+def _pine_outlines(rng: np.random.Generator, n: int, tiers: int = 5) -> FloatArray:
+    """Tiered conifer silhouettes in units of the canopy radius (x right, y up)."""
+    t = np.linspace(0.0, 1.0, 2 * tiers + 1)
+    saw = np.where(np.arange(t.size) % 2 == 1, 1.0, 0.72)
+    y = 1.6 - 2.8 * t
+    half_r = (0.1 + 0.9 * t) * saw * rng.uniform(0.9, 1.1, (n, t.size))
+    half_l = (0.1 + 0.9 * t) * saw * rng.uniform(0.9, 1.1, (n, t.size))
+    right = np.stack([half_r, np.broadcast_to(y, (n, t.size))], -1)
+    left = np.stack([-half_l[:, ::-1], np.broadcast_to(y[::-1], (n, t.size))], -1)
+    apex = np.broadcast_to(np.array([0.0, 1.65]), (n, 1, 2))
+    return np.concatenate([apex, right, left], axis=1)
+
+
+def densify(poly: FloatArray, step: float) -> FloatArray:
+    """Insert vertices so that no edge of the closed polygon is longer than ``step``."""
+    nxt = np.roll(poly, -1, axis=0)
+    counts = np.maximum(1, np.ceil(np.linalg.norm(nxt - poly, axis=1) / step).astype(int))
+    t = np.concatenate([np.arange(c) / c for c in counts])
+    idx = np.repeat(np.arange(len(poly)), counts)
+    return np.asarray(poly[idx] + (nxt[idx] - poly[idx]) * t[:, None])
+
+
+def _convex_hull(points: NDArray[np.float32]) -> FloatArray:
+    return np.asarray(cv2.convexHull(points)[:, 0, :], dtype=np.float64)
+
+
+def make_take(rng: np.random.Generator, style: Style, curvature: FloatArray, s0: float,
+              s_lo: float, s_hi: float) -> Take:
+    """Draw the materials, sun and scenery of a take on a curvature profile."""
+    route = build_route(curvature, s0, float(rng.uniform(*style.road_width)))
+    base_line = np.asarray(style.line_colours[int(rng.integers(len(style.line_colours)))])
+    line_colour = np.clip(base_line + rng.uniform(-0.04, 0.04, 3), 0.0, 1.0)
+    sun_out = bool(rng.random() < style.sun_prob)
+    shadow_direction = float(rng.uniform(0, 2 * np.pi))
+    elevation = float(np.radians(rng.uniform(*style.sun_elevation)))
+    edges = _edge_presence(rng, style, route)
+    scenery = make_scenery(rng, style, route, s_lo, s_hi, shadow_direction, elevation, sun_out)
+    lo, hi = style.hills
+    return Take(
+        style=style,
+        route=route,
+        scenery=scenery,
+        line_colour=(float(line_colour[0]), float(line_colour[1]), float(line_colour[2])),
+        line_width=float(rng.uniform(*style.line_width)),
+        line_inset=float(rng.uniform(*style.line_inset)),
+        centre_dash=bool(rng.random() < style.centre_dash_prob),
+        edges=edges,
+        sun_out=sun_out,
+        shadow_direction=shadow_direction,
+        sun_elevation=elevation,
+        skyline=np.abs(periodic_noise(rng, 4096, 2.2)) * rng.uniform(lo, hi) * 0.6 + lo * 0.3,
+        treeline=periodic_noise(rng, 4096, 1.2) * 0.004 + 0.008,
+        tint=1.0 + rng.uniform(-0.05, 0.05, 3),
+        texture_offset=(float(rng.uniform(0, 1000)), float(rng.uniform(0, 1000))),
+    )
+
+
+def _edge_presence(rng: np.random.Generator, style: Style,
+                   route: Route) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Where the roadside strips (curbs, gravel, sidewalk) are laid, per side."""
+    n = route.curvature.size
+    out = []
+    for _ in range(2):
+        if style.edge_kind == "curb":
+            # red/white curbs line the bends (and a little either side of them)
+            bend = np.abs(route.curvature) > 0.004
+            grow = int(20 / ROUTE_STEP)
+            bend = np.convolve(bend.astype(float), np.ones(2 * grow + 1), "same") > 0
+            on = bend & (rng.random() < style.edge_prob * 1.6)
+            if rng.random() < style.edge_prob * 0.4:
+                on = np.ones(n, dtype=bool)
+        else:
+            on = np.full(n, rng.random() < style.edge_prob)
+        out.append(np.asarray(on, dtype=bool))
+    return out[0], out[1]
