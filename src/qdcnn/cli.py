@@ -293,6 +293,7 @@ def evaluate_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    from qdcnn.data.labels import check_labels_usable
     from qdcnn.experiments.datasets import load_frameset
     from qdcnn.experiments.evaluate import (
         ALL_METHODS,
@@ -315,6 +316,7 @@ def evaluate_cmd(
                 "skipping dnn-* methods: torch is not installed (pip install 'qdcnn[dnn]')"
             )
         labels = frames.labels(cfg.labels)
+        check_labels_usable(labels, source=data)
         contiguous_folds(len(frames), folds, gap)  # validates folds and gap before any work
     except QdcnnError as exc:
         raise fail_on_error(exc) from None

@@ -1,0 +1,71 @@
+"""Dataset specifications, synthetic drives and cached lane features."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qdcnn.data.images import write_image
+from qdcnn.data.synthetic import generate_drive
+from qdcnn.data.writers import write_udacity
+from qdcnn.errors import ParameterError
+from qdcnn.experiments.datasets import load_frameset, parse_spec
+from qdcnn.experiments.direction_model import default_config
+from qdcnn.experiments.features import compute_features
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "track1",
+        "udacity:",
+        "ftp:x",
+        "synthetic:track9",
+        "synthetic:track1:abc",
+        "synthetic:track1:5",
+    ],
+)
+def test_bad_specs(spec: str) -> None:
+    with pytest.raises(ParameterError, match="data="):
+        load_frameset(spec)
+
+
+def test_parse_spec() -> None:
+    assert parse_spec("carla:/a/b") == ("carla", "/a/b")
+
+
+def test_synthetic_drive_frameset_has_labels_from_steering() -> None:
+    fs = load_frameset("synthetic:track1:40", seed=3)
+    assert len(fs) == 40 and fs.image(0).shape == (160, 320, 3)
+    assert fs.labels().shape == (40,)
+    assert fs.fingerprint() == load_frameset("synthetic:track1:40", seed=3).fingerprint()
+    assert fs.fingerprint() != load_frameset("synthetic:track1:40", seed=4).fingerprint()
+
+
+def test_features_are_cached_and_unreadable_frames_listed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    rec = tmp_path / "rec"
+    write_udacity(generate_drive("track1", 12, seed=1), rec)
+    frames = sorted((rec / "IMG").iterdir())
+    frames[4].write_bytes(b"garbage")  # one corrupt frame
+    fs = load_frameset(f"udacity:{rec}")
+    cfg = default_config()
+    first = compute_features(fs, cfg, ("image-split", "kmeans"))
+    assert not first.cached
+    assert first.readable.sum() == 11 and not first.readable[4]
+    assert [f.file for f in first.failures] == [str(frames[4])]
+    assert first.status["kmeans"][4] == "unreadable"
+    again = compute_features(fs, cfg, ("image-split", "kmeans"))
+    assert again.cached
+    for g in ("image-split", "kmeans"):
+        np.testing.assert_array_equal(again.features[g], first.features[g])
+        np.testing.assert_array_equal(again.status[g], first.status[g])
+    assert again.failures == first.failures
+    # a changed frame changes the fingerprint, so the cache is not reused
+    write_image(frames[4], fs.image(3))
+    third = compute_features(load_frameset(f"udacity:{rec}"), cfg, ("image-split", "kmeans"))
+    assert not third.cached and third.readable.all()

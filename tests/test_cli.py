@@ -1,0 +1,276 @@
+"""The qdcnn command line: JSON-only stdout, one-line errors, batches that go past bad files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from qdcnn.cli import app
+from qdcnn.data import images as image_io
+from qdcnn.data.images import read_mask, write_image, write_mask
+
+runner = CliRunner()
+
+
+def json_lines(text: str) -> list[dict]:
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+def road(h: int = 160, w: int = 320, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    img = np.clip(rng.normal(150, 5, (h, w, 3)), 0, 255)
+    img[h // 3 : 2 * h // 3, w // 4 : w // 2] *= 0.4
+    return img.astype(np.uint8)
+
+
+@pytest.fixture
+def mixed_folder(tmp_path: Path) -> Path:
+    """Good images of several kinds next to bad files."""
+    d = tmp_path / "in"
+    d.mkdir()
+    write_image(d / "rgb.png", road())
+    cv2.imwrite(str(d / "grey.png"), cv2.cvtColor(road(), cv2.COLOR_RGB2GRAY))
+    cv2.imwrite(str(d / "rgba.png"), cv2.cvtColor(road(), cv2.COLOR_RGB2BGRA))
+    cv2.imwrite(str(d / "deep16.png"), road().astype(np.uint16) * 257)
+    write_image(d / "small.png", road(40, 30))
+    write_image(d / "tiny.png", road(3, 3))
+    (d / "corrupt.jpg").write_bytes(b"\xff\xd8\xff\xe0 this is not really a jpeg")
+    (d / "empty.png").write_bytes(b"")
+    (d / "notes.txt").write_text("not an image")
+    (d / "sub").mkdir()
+    return d
+
+
+def test_detect_shadows_continues_past_bad_files(mixed_folder: Path, tmp_path: Path) -> None:
+    out = tmp_path / "masks"
+    missing = tmp_path / "nowhere.png"
+    res = runner.invoke(
+        app,
+        ["detect-shadows", str(mixed_folder), str(missing), "--out", str(out), "--json", "--exact"],
+    )
+    assert res.exit_code == 1
+    objs = json_lines(res.stdout)  # stdout holds only JSON
+    summary = objs[-1]
+    assert summary["summary"] is True
+    done = {Path(o["file"]).name: o for o in objs if "seconds" in o}
+    assert set(done) == {"rgb.png", "grey.png", "rgba.png", "deep16.png", "small.png"}
+    errors = {Path(f["file"]).name: f["error"] for f in summary["failures"]}
+    assert errors == {
+        "nowhere.png": f"{missing}: file not found",
+        "corrupt.jpg": f"{mixed_folder / 'corrupt.jpg'}: not a readable image "
+        "(corrupt or unsupported format)",
+        "empty.png": f"{mixed_folder / 'empty.png'}: empty file (0 bytes)",
+        "tiny.png": f"{mixed_folder / 'tiny.png'}: image size='3x3' is invalid: "
+        "at least 4x4 pixels for downsample 4",
+    }
+    assert [Path(p).name for p in summary["skipped"]] == ["notes.txt"]
+    for name, obj in done.items():
+        assert obj["method"] == "uu" and obj["seconds"] > 0 and 0 <= obj["shadow_fraction"] <= 1
+        mask = read_mask(obj["mask"])
+        assert mask.shape == image_io.read_image(mixed_folder / name).shape[:2]
+    # every error is one line on stderr, naming the file
+    for name, message in errors.items():
+        assert message in res.stderr.replace("\n", " ") or name in res.stderr
+    # the finished masks are on disk despite the failures
+    assert sorted(p.name for p in out.iterdir()) == sorted(f"{Path(n).stem}_mask.png" for n in done)
+
+
+def test_unreadable_file_reports_permission(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    target = tmp_path / "locked.png"
+    write_image(target, road())
+    real = np.fromfile
+
+    def fake_fromfile(path, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if Path(path) == target:
+            raise PermissionError(13, "Permission denied")
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(image_io.np, "fromfile", fake_fromfile)
+    res = runner.invoke(
+        app, ["detect-shadows", str(target), "--out", str(tmp_path / "o"), "--json"]
+    )
+    assert res.exit_code == 1
+    assert json_lines(res.stdout)[-1]["failures"] == [
+        {"file": str(target), "error": f"{target}: cannot read: permission denied"}
+    ]
+
+
+def test_very_large_image_is_processed_and_oversized_one_rejected(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    big = tmp_path / "big.png"
+    write_image(big, road(1500, 2600))
+    res = runner.invoke(app, ["detect-shadows", str(big), "--out", str(tmp_path / "o"), "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert read_mask(json_lines(res.stdout)[0]["mask"]).shape == (1500, 2600)
+    monkeypatch.setattr(image_io, "MAX_PIXELS", 1000 * 1000)
+    res = runner.invoke(app, ["detect-shadows", str(big), "--out", str(tmp_path / "o"), "--json"])
+    assert res.exit_code == 1
+    assert json_lines(res.stdout)[-1]["failures"][0]["error"] == (
+        f"{big}: image is 2600x1500, larger than 1000000 pixels"
+    )
+
+
+@pytest.mark.parametrize("method", ["uu", "uu-chroma", "ibt", "cbs", "lbp"])
+def test_every_method_writes_binary_masks(method: str, tmp_path: Path) -> None:
+    write_image(tmp_path / "a.png", road())
+    res = runner.invoke(
+        app,
+        [
+            "detect-shadows",
+            str(tmp_path / "a.png"),
+            "--out",
+            str(tmp_path / "o"),
+            "--method",
+            method,
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.stderr
+    mask = cv2.imread(str(tmp_path / "o" / "a_mask.png"), cv2.IMREAD_UNCHANGED)
+    assert mask.shape == (160, 320) and set(np.unique(mask)) <= {0, 255}
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--method", "magic"], "method='magic' is invalid"),
+        (["--backend", "gpu"], "backend='gpu' is invalid"),
+        (["--shots", "0"], "shadow.shots=0 is invalid"),
+        (["--threshold", "1.5"], "shadow.threshold=1.5 is invalid"),
+        (["--centroid", "300"], "shadow.centroid=300.0 is invalid"),
+    ],
+)
+def test_absurd_options_get_one_line_errors(args: list[str], message: str, tmp_path: Path) -> None:
+    write_image(tmp_path / "a.png", road())
+    res = runner.invoke(
+        app, ["detect-shadows", str(tmp_path / "a.png"), "--out", str(tmp_path / "o"), *args]
+    )
+    assert res.exit_code == 2
+    assert message in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_score_shadows_with_a_missing_ground_truth(tmp_path: Path) -> None:
+    pred, gt = tmp_path / "pred", tmp_path / "gt"
+    truth = np.zeros((20, 30), bool)
+    truth[5:15, 5:15] = True
+    write_mask(gt / "a.png", truth)
+    write_mask(pred / "a_mask.png", truth)  # perfect
+    guess = truth.copy()
+    guess[5:15, 5:10] = False  # half the shadow missed, nothing false
+    write_mask(gt / "b.png", truth)
+    write_mask(pred / "b_mask.png", guess)
+    write_mask(pred / "c_mask.png", truth)  # no ground truth for c
+    res = runner.invoke(app, ["score-shadows", "--pred", str(pred), "--gt", str(gt), "--json"])
+    assert res.exit_code == 1
+    obj = json_lines(res.stdout)[0]
+    # summed over the set: 150 of 200 shadow pixels found, no false positives
+    assert obj["n"] == 2
+    assert obj["shadow_error"] == pytest.approx(25.0)
+    assert obj["nonshadow_error"] == pytest.approx(0.0)
+    assert obj["ber"] == pytest.approx(12.5)
+    assert obj["failures"] == [
+        {
+            "file": str(pred / "c_mask.png"),
+            "error": f"{pred / 'c_mask.png'}: no ground-truth mask c.* in {gt}",
+        }
+    ]
+
+
+def test_synth_then_detect_and_score_round_trip(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app,
+        [
+            "synth",
+            "--preset",
+            "track2",
+            "--n",
+            "6",
+            "--out",
+            str(tmp_path / "s"),
+            "--layout",
+            "shadows",
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.stderr
+    info = json_lines(res.stdout)[0]
+    assert info["n"] == 6 and sum(info["directions"].values()) == 6
+    res = runner.invoke(
+        app,
+        [
+            "detect-shadows",
+            str(tmp_path / "s" / "images"),
+            "--out",
+            str(tmp_path / "p"),
+            "--method",
+            "ibt",
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0
+    res = runner.invoke(
+        app,
+        [
+            "score-shadows",
+            "--pred",
+            str(tmp_path / "p"),
+            "--gt",
+            str(tmp_path / "s" / "masks"),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0
+    score = json_lines(res.stdout)[0]
+    assert score["n"] == 6 and 0 <= score["ber"] <= 100
+
+
+def test_synth_writes_loadable_udacity_and_carla_layouts(tmp_path: Path) -> None:
+    from qdcnn.data.carla import load_carla
+    from qdcnn.data.udacity import load_udacity
+
+    res = runner.invoke(app, ["synth", "--preset", "rain", "--n", "5", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    assert len(load_udacity(tmp_path / "udacity")) == 5
+    assert len(load_carla(tmp_path / "carla")) == 5
+
+
+def test_evaluate_rejects_bad_specs_and_single_class_data(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["evaluate", "--data", "ftp:somewhere"])
+    assert res.exit_code == 2 and "data='ftp:somewhere' is invalid" in res.stderr
+    res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:200", "--folds", "1"])
+    assert res.exit_code == 2 and "folds=1 is invalid" in res.stderr
+    res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--method", "best"])
+    assert res.exit_code == 2 and "method='best' is invalid" in res.stderr
+    # a recording whose steering is all straight cannot give a meaningful accuracy
+    rec = tmp_path / "rec"
+    (rec / "IMG").mkdir(parents=True)
+    lines = []
+    for i in range(12):
+        name = f"center_2024_01_01_12_00_{i:02d}_000.jpg"
+        write_image(rec / "IMG" / name, road(seed=i))
+        lines.append(f"C:\\\\data\\\\IMG\\\\{name}, left.jpg, right.jpg, 0, 0, 0, 10")
+    (rec / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    res = runner.invoke(
+        app,
+        [
+            "evaluate",
+            "--data",
+            f"udacity:{rec}",
+            "--method",
+            "image-split-uu",
+            "--folds",
+            "2",
+            "--no-cache",
+        ],
+    )
+    assert res.exit_code == 2
+    assert "all 12 labels are 'straight'" in res.stderr
