@@ -659,6 +659,54 @@ def bench_shadows_cmd(
     out.print(est)
 
 
+@bench_app.command("pipeline")
+def bench_pipeline_cmd(
+    data: Annotated[
+        str, typer.Option(help="Frames to time (a dataset spec).")
+    ] = "synthetic:track1:200",
+    frames: Annotated[int, typer.Option(help="Frames timed per pass.")] = 100,
+    one_core: Annotated[bool, typer.Option(help="Pin the process to one CPU core.")] = True,
+    cnn: Annotated[bool, typer.Option(help="Also time CNN inference (needs torch).")] = True,
+    as_json: JsonOpt = False,
+) -> None:
+    """Frames/s of the whole per-frame pipeline (shadow, lanes, decision) per method."""
+    from qdcnn.experiments.pipeline_bench import bench_pipeline
+
+    try:
+        result = bench_pipeline(
+            data=data,
+            frames=frames,
+            one_core=one_core,
+            cnn=cnn,
+            say=None if as_json else lambda m: err.print(f"[dim]{m}[/dim]"),
+        )
+    except QdcnnError as exc:
+        raise fail_on_error(exc) from None
+    if as_json:
+        emit(result)
+        return
+    table = Table(
+        "pipeline",
+        "ms / frame",
+        "frames / s",
+        title=(
+            f"{result['frames']} frames of {result['data']} at {result['size'][0]}x{result['size'][1]}, "
+            f"{'one core' if result['one_core'] else 'all cores'} (measured)"
+        ),
+    )
+    for row in result["pipeline"]:
+        table.add_row(
+            row["method"], f"{row['ms_per_frame']:.2f}", f"{row['frames_per_second']:.0f}"
+        )
+    for row in result.get("cnn_inference", []):
+        table.add_row(
+            f"CNN {row['arch']} (inference only)",
+            f"{1e3 / row['frames_per_second']:.2f}",
+            f"{row['frames_per_second']:.0f}",
+        )
+    out.print(table)
+
+
 def main() -> None:
     """Entry point of the ``qdcnn`` script."""
     try:

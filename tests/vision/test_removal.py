@@ -129,3 +129,15 @@ def test_channel_medians_equal_numpy_median() -> None:
     for n in (1, 2, 3, 10, 11, 1001):
         values = rng.integers(0, 256, (n, 3)).astype(np.uint8)
         np.testing.assert_allclose(channel_medians(values), np.median(values.astype(float), axis=0))
+
+
+def test_masked_channel_medians_equal_gathered_medians() -> None:
+    from qdcnn.vision.removal import channel_medians, masked_channel_medians
+
+    rng = np.random.default_rng(4)
+    pixels = rng.integers(0, 256, (31, 47, 3)).astype(np.uint8)
+    for frac in (0.01, 0.3, 0.9):
+        mask = rng.random((31, 47)) < frac
+        np.testing.assert_array_equal(
+            masked_channel_medians(pixels, mask), channel_medians(pixels[mask])
+        )

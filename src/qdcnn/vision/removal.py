@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -104,14 +105,23 @@ def remove_shadows(
         return out
     pixels = img.reshape(*img.shape[:2], -1)
     view = out.reshape(pixels.shape)  # writes through to ``out``
-    lit_median = channel_medians(pixels[lit])
+    lit_median = masked_channel_medians(pixels, lit)
     if method == "road-fill":
         view[target] = np.rint(lit_median).astype(np.uint8)
     else:
         shadow_values = pixels[target]
-        gain = lit_median / np.maximum(channel_medians(shadow_values), 1.0)
+        gain = lit_median / np.maximum(masked_channel_medians(pixels, target), 1.0)
         view[target] = np.clip(np.rint(shadow_values * gain), 0, 255).astype(np.uint8)
     return out
+
+
+def _medians_from_counts(counts: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Medians of ``C`` histograms of 256 levels, shape ``(C, 256)``, as :func:`numpy.median`."""
+    n = int(counts[0].sum())
+    cum = counts.cumsum(axis=1)
+    lo = (cum <= (n - 1) // 2).sum(axis=1)  # level of order statistic (n - 1) // 2
+    hi = (cum <= n // 2).sum(axis=1)  # level of order statistic n // 2
+    return (lo + hi) / 2.0
 
 
 def channel_medians(values: NDArray[np.uint8]) -> NDArray[np.float64]:
@@ -120,9 +130,21 @@ def channel_medians(values: NDArray[np.uint8]) -> NDArray[np.float64]:
     Counting the 256 levels of each channel and reading the middle order
     statistics off the cumulative counts is exact and much faster than sorting.
     """
-    n, c = values.shape
+    c = values.shape[1]
     counts = np.bincount((values + np.arange(c, dtype=np.intp) * 256).ravel(), minlength=256 * c)
-    cum = counts.reshape(c, 256).cumsum(axis=1)
-    lo = (cum <= (n - 1) // 2).sum(axis=1)  # level of order statistic (n - 1) // 2
-    hi = (cum <= n // 2).sum(axis=1)  # level of order statistic n // 2
-    return (lo + hi) / 2.0
+    return _medians_from_counts(counts.reshape(c, 256))
+
+
+def masked_channel_medians(
+    pixels: NDArray[np.uint8], mask: NDArray[np.bool_]
+) -> NDArray[np.float64]:
+    """Per-channel median of ``pixels`` ``(H, W, C)`` where ``mask``, without gathering them.
+
+    OpenCV's masked histogram counts the levels in place; the result equals
+    :func:`channel_medians` of ``pixels[mask]``.
+    """
+    m = mask.view(np.uint8)
+    counts = np.stack(
+        [cv2.calcHist([pixels], [c], m, [256], [0, 256]).ravel() for c in range(pixels.shape[2])]
+    ).astype(np.intp)
+    return _medians_from_counts(counts)
