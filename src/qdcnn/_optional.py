@@ -18,6 +18,7 @@ _EXTRA_OF = {
     "qiskit": "quantum",
     "qiskit_aer": "quantum",
     "qiskit_machine_learning": "quantum",
+    "qiskit_qasm3_import": "quantum",
     "torch": "dnn",
     "dask": "dask",
 }

@@ -28,6 +28,7 @@ from qdcnn.cli_common import (
     progress,
     report_error,
 )
+from qdcnn.cli_noise import circuit_cmd, noise_sweep_cmd
 from qdcnn.config import PipelineConfig, ShadowConfig
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.errors import QdcnnError
@@ -44,6 +45,8 @@ bench_app = typer.Typer(
     no_args_is_help=True,
 )
 app.add_typer(bench_app, name="bench")
+app.command("noise-sweep")(noise_sweep_cmd)
+app.command("circuit")(circuit_cmd)
 
 
 @app.command("detect-shadows")
@@ -690,7 +693,8 @@ def bench_pipeline_cmd(
         "ms / frame",
         "frames / s",
         title=(
-            f"{result['frames']} frames of {result['data']} at {result['size'][0]}x{result['size'][1]}, "
+            f"{result['frames']} frames of {result['data']} at "
+            f"{result['size'][0]}x{result['size'][1]}, "
             f"{'one core' if result['one_core'] else 'all cores'} (measured)"
         ),
     )

@@ -70,7 +70,9 @@ def bench_pipeline(
         rng = np.random.default_rng(seed)
         log(f"timing {method}")
 
-        def run(image: np.ndarray, grouping: str = grouping, model: Any = model) -> None:
+        def run(
+            image: np.ndarray, grouping: str = grouping, model: Any = model, rng: Any = rng
+        ) -> None:
             lanes = process_frame(image, cfg, (grouping,), rng=rng).lanes[grouping]
             model.predict(lanes.features)
 

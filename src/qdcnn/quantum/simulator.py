@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._threads import single_thread
 from qdcnn.quantum.circuits import CircuitBatch, Gate
 from qdcnn.quantum.noise import NoiseSpec
 
@@ -112,12 +113,13 @@ def density_matrix(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDA
     rho[:, 0, 0] = 1.0
     kraus = None if noise is None else noise.kraus()
     kraus_on = [] if kraus is None else [embed(kraus, q, n) for q in range(n)]
-    for g in circuit.gates:
-        u = _gate_unitary(g, n)
-        rho = u @ rho @ np.conj(np.swapaxes(u, 1, 2))
-        for q in g.qubits if kraus_on else ():
-            k = kraus_on[q]
-            rho = np.einsum("kij,bjl,kml->bim", k, rho, k.conj(), optimize=True)
+    with single_thread():  # products of 4x4 matrices: BLAS threads only add overhead
+        for g in circuit.gates:
+            u = _gate_unitary(g, n)
+            rho = u @ rho @ np.conj(np.swapaxes(u, 1, 2))
+            for q in g.qubits if kraus_on else ():
+                k = kraus_on[q]
+                rho = np.einsum("kij,bjl,kml->bim", k, rho, k.conj(), optimize=True)
     return rho
 
 

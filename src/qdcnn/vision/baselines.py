@@ -23,16 +23,14 @@ also on images with no shadow at all.
 
 from __future__ import annotations
 
-from functools import cache
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 from skimage.feature import local_binary_pattern
 from skimage.filters import threshold_otsu
 from sklearn.cluster import KMeans
-from threadpoolctl import ThreadpoolController  # type: ignore[import-untyped]
 
+from qdcnn._threads import single_thread
 from qdcnn.errors import InputError, ParameterError
 
 __all__ = ["detect_cbs", "detect_ibt", "detect_lbp", "hsi_hue_intensity", "to_grey"]
@@ -175,11 +173,6 @@ def detect_cbs(image: NDArray[np.uint8], *, equalize: bool = True) -> NDArray[np
     return np.asarray(ratio > threshold_otsu(ratio))
 
 
-@cache
-def _threadpools() -> ThreadpoolController:
-    return ThreadpoolController()
-
-
 def _local_lbp_features(
     grey: NDArray[np.uint8], points: int, radius: float, window: int
 ) -> NDArray[np.float32]:
@@ -285,7 +278,7 @@ def detect_lbp(
         return np.zeros(grey.shape, dtype=bool)
     # One OpenMP thread: the problem is small, and scikit-learn's threaded
     # k-means slows down by orders of magnitude when the cores are busy.
-    with _threadpools().limit(limits=1, user_api="openmp"):
+    with single_thread():
         kmeans = KMeans(n_clusters=2, n_init=3, random_state=seed).fit(fit)
         labels = kmeans.predict(flat)
     shadow_cluster = int(np.argmin(kmeans.cluster_centers_[:, 0]))
