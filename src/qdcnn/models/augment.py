@@ -1,0 +1,84 @@
+"""Seeded training-time augmentation of direction-labelled frames, batched in torch.
+
+Three label-aware transforms common in behavioural-cloning work on the Udacity
+simulator (Bojarski et al. 2016 augment with shifts and rotations; flips,
+brightness and shadows are the usual additions for this simulator):
+
+- horizontal flip, which mirrors the road, so left and right labels swap;
+- brightness scaling of the whole frame (scaling RGB scales HSV value, keeping hue);
+- a synthetic shadow: a random quadrilateral spanning the frame top to bottom is
+  darkened, mimicking tree and pole shadows across the road.
+"""
+
+from __future__ import annotations
+
+from qdcnn._optional import require
+from qdcnn.data.labels import LEFT, RIGHT
+
+require("torch", "CNN training augmentation")
+import torch  # noqa: E402
+
+FLIP_PROBABILITY = 0.5
+BRIGHTNESS_RANGE = (0.5, 1.3)
+SHADOW_PROBABILITY = 0.5
+SHADOW_DARKNESS = (0.4, 0.8)  # factor multiplying pixels under the shadow
+
+
+def _uniform(n: int, lo: float, hi: float, generator: torch.Generator) -> torch.Tensor:
+    return lo + (hi - lo) * torch.rand(n, generator=generator)
+
+
+def shadow_masks(n: int, height: int, width: int, generator: torch.Generator) -> torch.Tensor:
+    """Random quadrilateral masks ``(n, height, width)`` bool, one per frame.
+
+    Each quadrilateral joins a random span of the top row to a random span of
+    the bottom row, so it crosses the road the way a roadside shadow does.
+    """
+    ends = torch.rand((n, 4), generator=generator) * width
+    top = torch.sort(ends[:, :2], dim=1).values
+    bottom = torch.sort(ends[:, 2:], dim=1).values
+    t = torch.linspace(0.0, 1.0, height).view(1, height, 1)
+    left = top[:, 0].view(n, 1, 1) + (bottom[:, 0] - top[:, 0]).view(n, 1, 1) * t
+    right = top[:, 1].view(n, 1, 1) + (bottom[:, 1] - top[:, 1]).view(n, 1, 1) * t
+    x = (torch.arange(width, dtype=torch.float32) + 0.5).view(1, 1, width)
+    return (x >= left) & (x <= right)
+
+
+def augment_batch(
+    images: torch.Tensor, labels: torch.Tensor, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Augment a batch of frames and their direction labels.
+
+    Parameters
+    ----------
+    images : (B, 3, H, W) tensor
+        RGB pixel values in 0..255 (any dtype; any device).
+    labels : (B,) int64 tensor
+        0 = left, 1 = straight, 2 = right.
+    generator : torch.Generator
+        CPU generator all random choices are drawn from (seeded by the caller).
+
+    Returns
+    -------
+    images : (B, 3, H, W) float32 tensor
+        Augmented pixels, clipped to [0, 255], on the input's device.
+    labels : (B,) int64 tensor
+        Labels with left and right swapped where the frame was flipped.
+    """
+    n, _, h, w = images.shape
+    device = images.device
+    x = images.float()
+    flip = (torch.rand(n, generator=generator) < FLIP_PROBABILITY).to(device)
+    x = torch.where(flip.view(n, 1, 1, 1), x.flip(-1), x)
+    swapped = torch.where(labels == LEFT, RIGHT, torch.where(labels == RIGHT, LEFT, labels))
+    labels = torch.where(flip, swapped, labels)
+
+    brightness = _uniform(n, *BRIGHTNESS_RANGE, generator).to(device)
+    x = x * brightness.view(n, 1, 1, 1)
+
+    shaded = torch.rand(n, generator=generator) < SHADOW_PROBABILITY
+    darkness = _uniform(n, *SHADOW_DARKNESS, generator)
+    masks = shadow_masks(n, h, w, generator) & shaded.view(n, 1, 1)
+    factor = torch.where(masks, darkness.view(n, 1, 1), torch.ones(()))
+    x = x * factor.to(device).unsqueeze(1)
+    return x.clamp_(0.0, 255.0), labels

@@ -1,0 +1,59 @@
+"""NVIDIA PilotNet as a three-way direction classifier.
+
+References
+----------
+.. [1] M. Bojarski et al., "End to End Learning for Self-Driving Cars",
+       arXiv:1604.07316, 2016 (Fig. 4).
+"""
+
+from __future__ import annotations
+
+from qdcnn._optional import require
+
+require("torch", "the PilotNet model")
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+
+class PilotNet(nn.Module):
+    """PilotNet [1]_: five convolutions and three dense layers, with a class head.
+
+    Input is a ``(B, 3, 66, 200)`` YUV tensor already scaled to about [-1, 1]
+    (:data:`qdcnn.models.preprocess.PILOTNET_INPUT`; the paper's fixed
+    normalisation layer). Convolutions: 24, 36, 48 filters 5x5 stride 2, then
+    64, 64 filters 3x3 stride 1, leaving a 64x1x18 map. As in most
+    reimplementations, the figure's "1164 neurons" is taken as this flattened
+    map (1152 values), followed by dense layers of 100, 50 and 10 units and a
+    ``num_classes`` head in place of the steering output. ELU activations;
+    dropout on the flattened map because the recordings are small.
+
+    Parameters
+    ----------
+    num_classes : int
+        Output logits (3: left, straight, right).
+    dropout : float
+        Dropout probability on the flattened features.
+    """
+
+    def __init__(self, num_classes: int = 3, dropout: float = 0.3) -> None:
+        super().__init__()
+        self.features = nn.Sequential(
+            nn.Conv2d(3, 24, 5, stride=2), nn.ELU(),
+            nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
+            nn.Conv2d(36, 48, 5, stride=2), nn.ELU(),
+            nn.Conv2d(48, 64, 3), nn.ELU(),
+            nn.Conv2d(64, 64, 3), nn.ELU(),
+        )  # fmt: skip
+        self.classifier = nn.Sequential(
+            nn.Flatten(),
+            nn.Dropout(dropout),
+            nn.Linear(64 * 1 * 18, 100), nn.ELU(),
+            nn.Linear(100, 50), nn.ELU(),
+            nn.Linear(50, 10), nn.ELU(),
+            nn.Linear(10, num_classes),
+        )  # fmt: skip
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits ``(B, num_classes)`` for a ``(B, 3, 66, 200)`` batch."""
+        out: torch.Tensor = self.classifier(self.features(x))
+        return out

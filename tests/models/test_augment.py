@@ -1,0 +1,58 @@
+"""Seeded flip / brightness / shadow augmentation with label swapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from qdcnn.models.augment import SHADOW_DARKNESS, augment_batch, shadow_masks  # noqa: E402
+
+
+def half_bright_batch(n: int) -> torch.Tensor:
+    x = torch.zeros((n, 3, 12, 20))
+    x[..., :10] = 200.0  # bright left half, black right half: a flip is visible
+    return x
+
+
+def test_flip_swaps_left_and_right_only() -> None:
+    n = 64
+    labels = torch.arange(n) % 3
+    out, new = augment_batch(half_bright_batch(n), labels, torch.Generator().manual_seed(0))
+    flipped = out[..., 10:].amax(dim=(1, 2, 3)) > 0
+    assert 10 < int(flipped.sum()) < n - 10  # about half are flipped
+    expected = torch.where(flipped, 2 - labels, labels)  # 0 <-> 2, 1 stays
+    assert torch.equal(new, expected)
+
+
+def test_brightness_and_shadow_scale_a_flat_frame() -> None:
+    x = torch.full((40, 3, 16, 24), 100.0)
+    out, _ = augment_batch(x, torch.ones(40, dtype=torch.long), torch.Generator().manual_seed(1))
+    assert out.min() >= 0 and out.max() <= 255
+    shaded = 0
+    for frame in out:
+        levels = torch.unique(frame)
+        assert len(levels) in (1, 2)  # lit, and possibly one shadow level
+        if len(levels) == 2:
+            shaded += 1
+            ratio = float(levels[0] / levels[1])
+            assert SHADOW_DARKNESS[0] - 1e-4 <= ratio <= SHADOW_DARKNESS[1] + 1e-4
+    assert 5 < shaded < 35
+
+
+def test_shadows_are_convex_quadrilaterals() -> None:
+    masks = shadow_masks(20, 30, 40, torch.Generator().manual_seed(2)).numpy()
+    for mask in masks:
+        for row in mask:
+            cols = np.flatnonzero(row)
+            if len(cols):
+                assert cols[-1] - cols[0] + 1 == len(cols)  # one run per row
+
+
+def test_same_generator_seed_same_augmentation() -> None:
+    x = torch.rand((6, 3, 8, 8)) * 255
+    y = torch.tensor([0, 1, 2, 0, 1, 2])
+    a = augment_batch(x, y, torch.Generator().manual_seed(5))
+    b = augment_batch(x, y, torch.Generator().manual_seed(5))
+    assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])

@@ -1,0 +1,206 @@
+"""CNNDirectionClassifier: learning, determinism, persistence, checkpoints, input errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+cv2 = pytest.importorskip("cv2")
+
+from sklearn.base import clone  # noqa: E402
+from sklearn.exceptions import NotFittedError  # noqa: E402
+
+from qdcnn.errors import InputError, ParameterError  # noqa: E402
+from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.training import class_weights, split_train_val  # noqa: E402
+
+
+def line_frames(
+    n: int, rng: np.random.Generator, h: int = 40, w: int = 80
+) -> tuple[np.ndarray, np.ndarray]:
+    """Dark noisy frames with one bright line from the bottom centre, leaning with the label.
+
+    Label 0 (left) leans left, 1 (straight) is vertical, 2 (right) leans right, so a
+    horizontal flip of a frame is a frame of the swapped label, as the augmentation assumes.
+    """
+    labels = np.arange(n) % 3
+    images = np.empty((n, h, w, 3), np.uint8)
+    for i, label in enumerate(labels):
+        img = (60 + rng.integers(0, 20, (h, w, 3))).astype(np.uint8)
+        x_bottom = w / 2 + rng.uniform(-6, 6)
+        lean = (-1, 0, 1)[label] * rng.uniform(0.6, 1.0) * w / 2
+        cv2.line(img, (int(x_bottom), h - 1), (int(x_bottom + lean), 0), (240, 240, 240), 3)
+        images[i] = img
+    return images, labels
+
+
+def small(**kw: object) -> CNNDirectionClassifier:
+    settings: dict[str, object] = {
+        "epochs": 1,
+        "batch_size": 16,
+        "progress": False,
+        "num_threads": 1,
+        "seed": 3,
+    }
+    settings.update(kw)
+    return CNNDirectionClassifier("pilotnet", **settings)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def data() -> tuple[np.ndarray, np.ndarray]:
+    return line_frames(60, np.random.default_rng(0))
+
+
+@pytest.fixture(scope="module")
+def fitted(data: tuple[np.ndarray, np.ndarray]) -> CNNDirectionClassifier:
+    return small(epochs=4).fit(*data)
+
+
+def test_training_lowers_the_loss_and_learns_the_lean(fitted: CNNDirectionClassifier) -> None:
+    losses = [h["train_loss"] for h in fitted.history_]
+    assert len(losses) == 4
+    assert losses[-1] < 0.8 * losses[0]
+    test_x, test_y = line_frames(30, np.random.default_rng(1))
+    assert fitted.score(test_x, test_y) >= 0.8
+    proba = fitted.predict_proba(test_x)
+    assert proba.shape == (30, 3)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0, atol=1e-6)
+    assert fitted.predict(test_x).dtype == np.int64
+
+
+def test_best_validation_epoch_is_kept(fitted: CNNDirectionClassifier) -> None:
+    val_losses = [h["val_loss"] for h in fitted.history_]
+    assert fitted.best_epoch_ == int(np.argmin(val_losses)) + 1
+    assert all(0.0 <= h["val_accuracy"] <= 1.0 for h in fitted.history_)
+
+
+def test_same_seed_gives_identical_predictions(data: tuple[np.ndarray, np.ndarray]) -> None:
+    x, y = data
+    a = small(epochs=2).fit(x, y)
+    b = small(epochs=2).fit(x, y)
+    c = small(epochs=2, seed=4).fit(x, y)
+    np.testing.assert_array_equal(a.predict_proba(x), b.predict_proba(x))
+    assert [h["train_loss"] for h in a.history_] == [h["train_loss"] for h in b.history_]
+    assert not np.array_equal(a.predict_proba(x), c.predict_proba(x))
+
+
+def test_fit_leaves_global_torch_state_alone(data: tuple[np.ndarray, np.ndarray]) -> None:
+    torch.manual_seed(123)
+    expected = torch.rand(3)
+    threads = torch.get_num_threads()
+    torch.manual_seed(123)
+    small(num_threads=1, val_fraction=0.0).fit(*data)
+    assert torch.equal(torch.rand(3), expected)
+    assert torch.get_num_threads() == threads
+    assert not torch.are_deterministic_algorithms_enabled()
+
+
+def test_save_load_round_trip(fitted: CNNDirectionClassifier, tmp_path: Path) -> None:
+    x, _ = line_frames(12, np.random.default_rng(2))
+    path = tmp_path / "pilotnet.pt"
+    fitted.save(path)
+    loaded = CNNDirectionClassifier.load(path)
+    np.testing.assert_array_equal(loaded.predict_proba(x), fitted.predict_proba(x))
+    assert loaded.get_params() == fitted.get_params()
+    assert loaded.history_ == fitted.history_
+    assert loaded.best_epoch_ == fitted.best_epoch_
+
+
+def test_load_rejects_other_files(tmp_path: Path) -> None:
+    plain = tmp_path / "plain.pt"
+    torch.save({"w": torch.zeros(2)}, plain)
+    with pytest.raises(InputError) as err:
+        CNNDirectionClassifier.load(plain)
+    assert str(err.value) == f"{plain}: not a saved qdcnn CNN direction classifier"
+    missing = tmp_path / "none.pt"
+    with pytest.raises(InputError) as err:
+        CNNDirectionClassifier.load(missing)
+    assert str(err.value) == f"{missing}: file not found"
+
+
+def test_checkpoints_hold_the_best_model_and_the_optimiser(
+    data: tuple[np.ndarray, np.ndarray], tmp_path: Path
+) -> None:
+    clf = small(epochs=2, checkpoint_dir=tmp_path / "ckpt").fit(*data)
+    best = CNNDirectionClassifier.load(tmp_path / "ckpt" / "best.pt")
+    np.testing.assert_array_equal(best.predict_proba(data[0]), clf.predict_proba(data[0]))
+    last = torch.load(tmp_path / "ckpt" / "last.pt", weights_only=True)
+    assert last["epoch"] == 2
+    assert last["optimizer"]["state"]  # AdamW moments were saved
+    assert len(last["history"]) == 2
+
+
+def test_early_stopping_respects_patience(data: tuple[np.ndarray, np.ndarray]) -> None:
+    clf = small(epochs=6, patience=1, lr=0.05).fit(*data)  # a too-high rate stalls early
+    assert len(clf.history_) <= clf.best_epoch_ + 1
+    assert len(clf.history_) < 6
+
+
+def test_progress_bar_goes_to_stderr(
+    data: tuple[np.ndarray, np.ndarray], capsys: pytest.CaptureFixture[str]
+) -> None:
+    small(progress=True, val_fraction=0.0).fit(*data)
+    out = capsys.readouterr()
+    assert "pilotnet epoch 1/1 loss" in out.err
+    assert out.out == ""
+    small(progress=False, val_fraction=0.0).fit(*data)
+    assert capsys.readouterr().err == ""
+
+
+def test_contiguous_validation_split() -> None:
+    train, val = split_train_val(100, 0.15)
+    np.testing.assert_array_equal(train, np.arange(85))
+    np.testing.assert_array_equal(val, np.arange(85, 100))
+    assert len(split_train_val(5, 0.1)[1]) == 1
+    assert len(split_train_val(5, 0.0)[1]) == 0
+    with pytest.raises(InputError, match="2 frames leave 1 for training; need at least 2"):
+        split_train_val(2, 0.5)
+
+
+def test_class_weights_are_balanced() -> None:
+    weights = class_weights(np.array([1, 1, 1, 1, 1, 1, 0, 2]))
+    np.testing.assert_allclose(weights, [8 / 3, 8 / 18, 8 / 3])
+    np.testing.assert_allclose(class_weights(np.array([0, 1, 1, 1])), [2.0, 2 / 3, 0.0])
+    # flips pool left and right: counts (1.5, 1, 1.5) of 4 frames
+    mirrored = class_weights(np.array([0, 0, 0, 1]), mirrored=True)
+    np.testing.assert_allclose(mirrored, [4 / 4.5, 4 / 3, 4 / 4.5])
+
+
+def test_input_errors(data: tuple[np.ndarray, np.ndarray]) -> None:
+    x, y = data
+    with pytest.raises(InputError) as err:
+        small().fit(x, np.where(y == 2, 5, y))
+    assert str(err.value) == "labels: values must be 0 (left), 1 (straight) or 2 (right); found 5"
+    with pytest.raises(InputError) as err:
+        small().fit(x.astype(np.float32), y)
+    assert str(err.value) == (
+        "images: expected a non-empty uint8 RGB array of shape (N, H, W, 3), "
+        "got float32 of shape (60, 40, 80, 3)"
+    )
+    with pytest.raises(InputError) as err:
+        small().fit(x, y[:10])
+    assert str(err.value) == "labels: expected 60 labels (one per image), got shape (10,)"
+    with pytest.raises(NotFittedError):
+        small().predict(x)
+
+
+def test_parameter_errors() -> None:
+    with pytest.raises(ParameterError) as err:
+        CNNDirectionClassifier("vgg")  # type: ignore[arg-type]
+    assert str(err.value) == "arch='vgg' is invalid: 'pilotnet' or 'resnet50'"
+    with pytest.raises(ParameterError, match=r"val_fraction=1\.5 is invalid"):
+        CNNDirectionClassifier(val_fraction=1.5)
+    with pytest.raises(ParameterError, match="batch_size=1 is invalid"):
+        CNNDirectionClassifier("resnet50", batch_size=1)
+    with pytest.raises(ParameterError, match="crop"):
+        CNNDirectionClassifier(crop=(0.8, 0.2))
+
+
+def test_is_a_scikit_learn_estimator() -> None:
+    clf = CNNDirectionClassifier("resnet50", epochs=3, weights="w.pth")
+    twin = clone(clf)
+    assert twin.get_params() == clf.get_params()
+    assert twin.get_params()["weights"] == "w.pth"
