@@ -621,7 +621,7 @@ def bench_shadows_cmd(
             repeats=repeats,
             aer_blocks=aer_blocks,
             include_lbp=lbp,
-            progress=lambda msg: err.print(f"[dim]timing {msg}[/dim]") if not as_json else None,
+            progress=None if as_json else lambda msg: err.print(f"[dim]timing {msg}[/dim]"),
         )
     except QdcnnError as exc:
         raise fail_on_error(exc) from None

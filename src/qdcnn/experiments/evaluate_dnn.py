@@ -62,8 +62,13 @@ def evaluate_cnn(
     weights: Path | None = None,
     seed: int = 0,
     progress: bool = True,
+    num_threads: int | None = None,
 ) -> MethodResult:
-    """Train and test a CNN baseline on each contiguous fold; same folds as the quantum methods."""
+    """Train and test a CNN baseline on each contiguous fold; same folds as the quantum methods.
+
+    ``num_threads`` is the torch CPU thread count (default: the CPUs this process may
+    run on, so ``taskset -c 0 qdcnn evaluate ...`` trains on one thread).
+    """
     from qdcnn.models.training import CNNDirectionClassifier
 
     t0 = time.perf_counter()
@@ -73,7 +78,12 @@ def evaluate_cnn(
     predictions, majority, histories = [], [], []
     for train, test in contiguous_folds(len(y), folds, gap):
         model = CNNDirectionClassifier(
-            ARCH_OF[method], epochs=epochs, weights=weights, seed=seed, progress=progress
+            ARCH_OF[method],
+            epochs=epochs,
+            weights=weights,
+            seed=seed,
+            progress=progress,
+            num_threads=num_threads,
         )
         model.fit(x[train], y[train])
         predictions.append((test, np.asarray(model.predict(x[test]), dtype=np.int64)))
