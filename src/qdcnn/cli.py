@@ -233,7 +233,7 @@ def train_shadows_cmd(
 ) -> None:
     """Train a UU-dagger shadow centroid (and threshold) on images with masks."""
     from qdcnn.experiments.shadow_batch import load_shadow_set
-    from qdcnn.vision.shadows import train_shadow_model
+    from qdcnn.vision.shadow_training import train_shadow_model
 
     try:
         images, masks, failures = load_shadow_set(data)

@@ -47,6 +47,11 @@ class ShadowConfig:
         Maximum iterations of the centroid propagation algorithm.
     propagation_tol : float
         Stop when the centroid angle moves less than this (radians).
+    calibration_classes : int
+        Clusters of the per-image calibration start (used when no centroid or
+        model is given): 2 is the two-means split of the paper's clustering start;
+        3 or 4 take the darkest (for chromaticity: highest) class of a multi-Otsu
+        split, so that a dark non-shadow cluster (canopies, tar) can sit apart.
     """
 
     feature: Literal["intensity", "chromaticity"] = "intensity"
@@ -58,9 +63,11 @@ class ShadowConfig:
     centroid: float | None = None
     propagation_iterations: int = 50
     propagation_tol: float = 1e-9
+    calibration_classes: int = 2
 
     def __post_init__(self) -> None:
         _check_int("shadow.downsample", self.downsample, 1, 64)
+        _check_int("shadow.calibration_classes", self.calibration_classes, 2, 4)
         _check_int("shadow.grid", self.grid, 1, 4096)
         _check_range("shadow.threshold", self.threshold, 0.0, 1.0)
         if self.shots is not None:

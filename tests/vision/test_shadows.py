@@ -12,6 +12,13 @@ import pytest
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.uu_dagger import angle_to_value, band_halfwidth
+from qdcnn.vision.shadow_training import (
+    MULTI_THRESHOLD_GRID,
+    halfwidth_threshold,
+    train_from_crop,
+    train_multi_shadow_model,
+    train_shadow_model,
+)
 from qdcnn.vision.shadows import (
     ShadowModel,
     binary_median,
@@ -19,9 +26,9 @@ from qdcnn.vision.shadows import (
     block_means,
     calibrate_centroid,
     detect_shadows_uu,
+    extreme_cluster,
     feature_map,
-    train_from_crop,
-    train_shadow_model,
+    multi_centroid_test,
 )
 
 EXACT = ShadowConfig(shots=None)
@@ -187,3 +194,143 @@ def test_model_file_round_trip_and_errors(tmp_path: Path) -> None:
     )
     with pytest.raises(ParameterError, match="centroid=900.0"):
         ShadowModel.load(tmp_path / "range.json")
+
+
+# --- chromaticity look-up, multi-class calibration, multi-centroid models ---
+
+
+def test_chromaticity_lookup_equals_direct_formula(rng: np.random.Generator) -> None:
+    img = rng.integers(0, 256, (37, 53, 3)).astype(np.uint8)
+    rgb = img.astype(np.float32)
+    direct = np.arctan2(rgb[..., 2], np.maximum(rgb[..., 0], rgb[..., 1]))
+    direct = (direct * np.float32(255.0 / (np.pi / 2))).astype(np.float32)
+    got = feature_map(img, "chromaticity")
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, direct)
+
+
+def test_extreme_cluster_separates_three_modes(rng: np.random.Generator) -> None:
+    values = np.concatenate(
+        [rng.normal(60, 3, 300), rng.normal(150, 5, 1500), rng.normal(225, 4, 700)]
+    )
+    assert extreme_cluster(values, 3, "lowest").mean() == pytest.approx(60, abs=2)
+    assert extreme_cluster(values, 3, "highest").mean() == pytest.approx(225, abs=2)
+    with pytest.raises(ParameterError, match="pick"):
+        extreme_cluster(values, 3, "middle")
+
+
+def test_multi_class_calibration_ignores_a_bright_third_mode(rng: np.random.Generator) -> None:
+    # shadow, lit road and a large bright sky: two-means puts shadow and road together
+    values = np.concatenate(
+        [rng.normal(60, 3, 300), rng.normal(140, 5, 900), rng.normal(230, 3, 1800)]
+    )
+    two = calibrate_centroid(values, "intensity", EXACT)
+    three = calibrate_centroid(values, "intensity", replace(EXACT, calibration_classes=3))
+    assert abs(two - 60) > 20
+    assert three == pytest.approx(60, abs=2)
+
+
+@pytest.mark.parametrize("classes", [1, 5, 2.0])
+def test_calibration_classes_is_checked(classes: object) -> None:
+    with pytest.raises(ParameterError, match="shadow.calibration_classes"):
+        ShadowConfig(calibration_classes=classes)  # type: ignore[arg-type]
+
+
+def test_halfwidth_threshold_inverts_band_halfwidth() -> None:
+    for h in (2.0, 28.0, 85.0):
+        assert angle_to_value(band_halfwidth(halfwidth_threshold(h))) == pytest.approx(h)
+    assert halfwidth_threshold(28.0) == pytest.approx(0.97, abs=0.002)
+    assert list(MULTI_THRESHOLD_GRID) == sorted(MULTI_THRESHOLD_GRID)
+
+
+def test_cascade_gives_the_decisions_of_all_circuits(rng: np.random.Generator) -> None:
+    values = rng.uniform(0, 255, (2, 500))
+    centroids = np.array([[50.0, 140.0], [60.0, 100.0], [120.0, 128.0]])
+    thresholds = np.array([[0.95, 0.9], [0.98, 0.97], [0.99, 0.95]])
+    accepted, scores = multi_centroid_test(values, centroids, thresholds, shots=None)
+    fid = np.cos((centroids[:, :, None] - values[None]) * np.pi / 255 / 2) ** 2  # (k, F, N)
+    member = np.all(fid >= thresholds[:, :, None], axis=1)
+    np.testing.assert_array_equal(accepted, member.any(axis=0))
+    # where a block passed a component's first test, its product fidelity is known
+    ran = fid[:, 0] >= thresholds[:, :1]
+    best = np.where(ran, fid.prod(axis=1), 0.0).max(axis=0)
+    np.testing.assert_allclose(scores, best, atol=1e-12)
+
+
+def road_with_decoy(rng: np.random.Generator, shift: int = 0):
+    """Grey road with a brown verge: a bluish shadow on each, and a neutral dark tar patch
+    on the road that is not shadow (as dark as the road shadow)."""
+    h, w = 96, 160
+    img = np.empty((h, w, 3))
+    img[:] = [150.0, 150.0, 150.0]
+    img[:, 120:] = [150.0, 120.0, 80.0]  # verge
+    mask = np.zeros((h, w), bool)
+    mask[16 + shift : 48 + shift, 16:64] = True  # shadow on the road
+    mask[56:88, 124 - shift : 156 - shift] = True  # shadow on the verge
+    tar = np.zeros((h, w), bool)
+    tar[60:88, 70 + shift : 110 + shift] = True
+    img[mask] *= [0.40, 0.42, 0.50]  # skylight: blue darkens least
+    img[tar] *= [0.45, 0.45, 0.46]
+    img += rng.normal(0.0, 3.0, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8), mask, tar
+
+
+def test_multi_centroid_model_rejects_neutral_tar(rng: np.random.Generator) -> None:
+    train = [road_with_decoy(rng, shift) for shift in (0, 4, 8)]
+    images, masks = [t[0] for t in train], [t[1] for t in train]
+    model = train_multi_shadow_model(images, masks, EXACT, n_centroids=2)
+    assert model.is_multi and model.features == ("intensity", "chromaticity")
+    # one component per surface: road shadow (~63, bluish c3 ~141), verge shadow (~53, ~96)
+    cents = sorted(model.centroids, key=lambda c: c[1])
+    assert cents[0] == pytest.approx((52.6, 95.5), abs=3)
+    assert cents[1] == pytest.approx((63.1, 140.8), abs=3)
+    img, truth, tar = road_with_decoy(rng, 2)
+    res = detect_shadows_uu(img, EXACT, model=model)
+    assert res.centroid_source == "model" and res.feature == "intensity+chromaticity"
+    assert res.feature_values is not None and res.feature_values.shape == (2, 24, 40)
+    assert iou(res.mask, truth) > 0.85
+    assert res.mask[tar].mean() < 0.05
+    # the paper's single intensity centroid cannot tell the tar from the road shadow
+    paper = train_shadow_model(images, masks, EXACT)
+    assert detect_shadows_uu(img, EXACT, model=paper).mask[tar].mean() > 0.9
+    shots = detect_shadows_uu(img, replace(EXACT, shots=1024), model=model, rng=3)
+    assert iou(shots.mask, res.mask) > 0.9
+
+
+def test_multi_centroid_model_file_round_trip_and_checks(tmp_path: Path) -> None:
+    model = ShadowModel(
+        "intensity",
+        50.0,
+        0.95,
+        {"trained_on": "test"},
+        ("intensity", "chromaticity"),
+        ((50.0, 140.0), (60.0, 100.0)),
+        ((0.95, 0.9), (0.98, 0.97)),
+    )
+    assert ShadowModel.load(model.save(tmp_path / "multi.json")) == model
+    # a paper model keeps the original file layout and reads back as one
+    paper = ShadowModel("intensity", 61.5, 0.97)
+    paper.save(tmp_path / "paper.json")
+    assert "centroids" not in (tmp_path / "paper.json").read_text()
+    assert not ShadowModel.load(tmp_path / "paper.json").is_multi
+    with pytest.raises(ParameterError, match="thresholds"):
+        ShadowModel("intensity", 50.0, 0.95, {}, ("intensity",), ((50.0,),), ((0.9, 0.8),))
+    with pytest.raises(ParameterError, match="features"):
+        ShadowModel("intensity", 50.0, 0.95, {}, ("hue",), ((50.0,),), ((0.9,),))
+    with pytest.raises(ParameterError, match="centroids"):
+        ShadowModel("intensity", 50.0, 0.95, {}, ("intensity",), ((300.0,),), ((0.9,),))
+    img = np.full((40, 48, 3), 90, np.uint8)
+    with pytest.raises(ParameterError, match="shadow.centroid"):
+        detect_shadows_uu(img, replace(EXACT, centroid=50.0), model=model)
+
+
+def test_train_multi_checks_its_arguments(rng: np.random.Generator) -> None:
+    img, truth = road_with_shadow(rng, shape=(48, 64))
+    with pytest.raises(ParameterError, match="features"):
+        train_multi_shadow_model([img], [truth], EXACT, features=("hue",))
+    with pytest.raises(ParameterError, match="n_centroids"):
+        train_multi_shadow_model([img], [truth], EXACT, n_centroids=0)
+    with pytest.raises(ParameterError, match="masks"):
+        train_multi_shadow_model([img], [np.zeros_like(truth)], EXACT)
+    with pytest.raises(ParameterError, match="images/masks"):
+        train_multi_shadow_model([img], [], EXACT)

@@ -57,14 +57,13 @@ from qdcnn.quantum.noise import PAPER_CHANNELS, NoiseSpec, check_channel, check_
 from qdcnn.quantum.uu_dagger import fidelity, value_to_angle
 from qdcnn.quantum.vqc import VQCClassifier, basis_probabilities, interpret_matrix
 from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
+from qdcnn.vision.shadow_training import block_shadow_fraction, train_shadow_model
 from qdcnn.vision.shadows import (
     ShadowModel,
     block_grid,
     block_means,
-    block_shadow_fraction,
     detect_shadows_uu,
     feature_input,
-    train_shadow_model,
 )
 
 #: Direction methods of the sweep (the classifier kinds of ``make_classifier``).

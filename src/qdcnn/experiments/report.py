@@ -62,7 +62,8 @@ def shadow_section(out_dir: Path, *, n_test: int, n_train: int, seed: int, say: 
     from qdcnn.data.synthetic import generate_scenes
     from qdcnn.vision.detectors import SHADOW_METHODS, detect_shadows
     from qdcnn.vision.overlays import draw_shadow_overlay
-    from qdcnn.vision.shadows import detect_shadows_uu, train_shadow_model
+    from qdcnn.vision.shadow_training import train_shadow_model
+    from qdcnn.vision.shadows import detect_shadows_uu
 
     say("shadows: rendering synthetic track2 scenes")
     test = generate_scenes("track2", n_test, seed=seed + 1000)

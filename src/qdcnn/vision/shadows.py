@@ -8,7 +8,14 @@ is expanded back to the input size and median filtered.
 
 The centroid comes from, in order of precedence: an explicit value, a trained
 :class:`ShadowModel`, or per-image calibration (a two-means clustering start on the
-block values refined by the propagation algorithm, which the paper allows).
+block values refined by the propagation algorithm, which the paper allows; a 3- or
+4-class multi-Otsu start is the option ``ShadowConfig.calibration_classes``).
+
+Beyond the paper, :func:`~qdcnn.vision.shadow_training.train_multi_shadow_model`
+trains a multi-centroid model: ``k`` components (shadow on different surfaces), each
+with a centroid and a fidelity threshold per feature (intensity and chromaticity by
+default). A block is shadow when every feature's one-qubit UU-dagger test passes for some component
+(:func:`multi_centroid_test`); the paper's model is the case ``k = 1`` with one feature.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.centroid import propagate_centroid
 from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.sampling import as_generator
 from qdcnn.quantum.uu_dagger import angle_to_value, fidelity, value_to_angle
 
 FEATURES = ("intensity", "chromaticity")
@@ -57,11 +65,24 @@ def feature_map(image: NDArray[np.uint8], feature: str = "intensity") -> NDArray
     if feature == "chromaticity":
         if image.ndim != 3:
             raise ParameterError("feature", feature, "an RGB image for chromaticity")
-        rgb = image.astype(np.float32)
-        rg = np.maximum(rgb[..., 0], rgb[..., 1])
-        c3 = np.arctan2(rgb[..., 2], rg)  # arctan(B / max(R, G)), 0 for B = 0, pi/4 for grey
-        return (c3 * np.float32(255.0 / (np.pi / 2))).astype(np.float32)
+        red, green, blue = cv2.split(np.ascontiguousarray(image, dtype=np.uint8))
+        index = (blue.astype(np.uint16) << 8) | cv2.max(red, green)
+        return _c3_table().take(index)
     raise ParameterError("feature", feature, "'intensity' or 'chromaticity'")
+
+
+@lru_cache(maxsize=1)
+def _c3_table() -> NDArray[np.float32]:
+    """``c3`` for every 8-bit ``(B, max(R, G))`` pair, flattened as ``B * 256 + max(R, G)``.
+
+    A look-up table gives the same float32 values as evaluating ``arctan2`` per
+    pixel, at a fraction of the cost.
+    """
+    level = np.arange(256, dtype=np.float32)
+    c3 = np.arctan2(level[:, None], level[None, :])  # arctan(B / max(R, G)); pi/4 for grey
+    table = (c3 * np.float32(255.0 / (np.pi / 2))).astype(np.float32).ravel()
+    table.setflags(write=False)
+    return table
 
 
 def feature_input(image: NDArray[np.uint8], feature: str) -> NDArray[np.generic]:
@@ -175,13 +196,40 @@ def two_means_cluster(values: NDArray[np.float64], pick: str = "lowest") -> NDAr
     scikit-image's :func:`~skimage.filters.threshold_otsu` computes it), so this
     is a deterministic k-means clustering that costs microseconds per image.
     """
-    from skimage.filters import threshold_otsu
+    return extreme_cluster(values, 2, pick)
 
+
+MULTI_OTSU_BINS = 32  # histogram bins of the 3- and 4-class splits (4 classes x 256 bins: ~50 ms)
+
+
+def extreme_cluster(
+    values: NDArray[np.float64], classes: int = 2, pick: str = "lowest"
+) -> NDArray[np.float64]:
+    """Values in the lowest (or highest) class of a 1-D Otsu split into ``classes`` classes.
+
+    Two classes use Otsu's threshold on 256 bins (:func:`two_means_cluster`);
+    three or four use the multi-level Otsu thresholds (Liao, Chen & Chung, "A
+    fast algorithm for multilevel thresholding", J. Inf. Sci. Eng. 17, 2001;
+    :func:`skimage.filters.threshold_multiotsu`) on :data:`MULTI_OTSU_BINS`
+    bins, the maximum of the between-class variance, i.e. a deterministic
+    ``classes``-means clustering of the values.
+    """
+    from skimage.filters import threshold_multiotsu, threshold_otsu
+
+    if pick not in ("lowest", "highest"):
+        raise ParameterError("pick", pick, "'lowest' or 'highest'")
     v = np.asarray(values, dtype=np.float64).ravel()
     if np.ptp(v) == 0:
         return v
-    t = threshold_otsu(v, nbins=256)
-    return v[v <= t] if pick == "lowest" else v[v > t]
+    if classes == 2:
+        t = float(threshold_otsu(v, nbins=256))
+        return v[v <= t] if pick == "lowest" else v[v > t]
+    try:
+        ts = threshold_multiotsu(v, classes=classes, nbins=MULTI_OTSU_BINS)
+    except ValueError:  # fewer distinct levels than classes: fall back to two classes
+        return extreme_cluster(v, 2, pick)
+    part = v[v <= ts[0]] if pick == "lowest" else v[v > ts[-1]]
+    return part if part.size else extreme_cluster(v, 2, pick)
 
 
 CALIBRATION_BIN = 0.25  # value units: block means are binned this finely for calibration
@@ -192,16 +240,21 @@ def calibrate_centroid(
     feature: str = "intensity",
     config: ShadowConfig | None = None,
 ) -> float:
-    """Per-image centroid: two-means start on the shadow side, refined by propagation.
+    """Per-image centroid: clustering start on the shadow side, refined by propagation.
 
     Shadows are the dark cluster of intensity and the high cluster of the
-    chromaticity ``c3`` (bluish skylight). The propagation algorithm then starts
-    at that cluster's mean and runs on its block values, binned to
-    :data:`CALIBRATION_BIN` value units (a histogram keeps each iteration
-    independent of the image size). Returns the centroid in value units.
+    chromaticity ``c3`` (bluish skylight). The clusters are the two-means split
+    (``config.calibration_classes == 2``, the paper's setting) or the extreme
+    class of a 3- or 4-class multi-Otsu split (:func:`extreme_cluster`). The
+    propagation algorithm then starts at that cluster's mean and runs on its
+    block values, binned to :data:`CALIBRATION_BIN` value units (a histogram
+    keeps each iteration independent of the image size). Returns the centroid
+    in value units.
     """
     cfg = config or ShadowConfig()
-    cluster = two_means_cluster(block_values, "lowest" if feature == "intensity" else "highest")
+    cluster = extreme_cluster(
+        block_values, cfg.calibration_classes, "lowest" if feature == "intensity" else "highest"
+    )
     start = float(cluster.mean())
     counts = np.bincount(np.round(cluster / CALIBRATION_BIN).astype(np.intp))
     levels = np.flatnonzero(counts)
@@ -231,6 +284,13 @@ class ShadowDetection:
         Score at or above which a block is shadow.
     centroid_source : str
         ``"given"``, ``"model"`` or ``"calibrated"``.
+    block_mask : ndarray of bool, shape (gh, gw), optional
+        Blocks classified as shadow (before expansion and median filtering).
+    feature_values : ndarray, shape (F, gh, gw), optional
+        For a multi-centroid model: the block value of each of its features
+        (``block_values`` is the first); ``block_scores`` is then the highest
+        product of per-feature fidelities over the components whose circuits all
+        ran (0 where the cascade stopped early for every component).
     """
 
     mask: NDArray[np.bool_]
@@ -240,6 +300,8 @@ class ShadowDetection:
     threshold: float
     feature: str
     centroid_source: str
+    block_mask: NDArray[np.bool_] | None = None
+    feature_values: NDArray[np.float64] | None = None
 
     @property
     def shadow_fraction(self) -> float:
@@ -248,7 +310,15 @@ class ShadowDetection:
 
 @dataclass(frozen=True)
 class ShadowModel:
-    """A trained UU-dagger shadow centroid, saved as JSON.
+    """A trained UU-dagger shadow model, saved as JSON.
+
+    The paper's model is one centroid on one feature with one threshold. A
+    multi-centroid model (:func:`train_multi_shadow_model`) has ``k`` components,
+    each a centroid per feature with its own fidelity threshold per feature: a
+    block is shadow when, for some component, every feature's UU-dagger test
+    passes (one circuit per feature and component). ``feature``, ``centroid``
+    and ``threshold`` then repeat the first component's first entry, so code
+    that reads only them still sees a sensible value.
 
     Attributes
     ----------
@@ -260,17 +330,49 @@ class ShadowModel:
         Fidelity threshold.
     meta : dict
         Provenance (how and on what it was trained).
+    features : tuple of str
+        Multi-centroid models only: the block features, in test order.
+    centroids, thresholds : tuple of tuple of float
+        Multi-centroid models only: ``(k, F)`` centroids (value units) and
+        fidelity thresholds.
     """
 
     feature: str
     centroid: float
     threshold: float
     meta: dict[str, Any] = field(default_factory=dict)
+    features: tuple[str, ...] = ()
+    centroids: tuple[tuple[float, ...], ...] = ()
+    thresholds: tuple[tuple[float, ...], ...] = ()
+
+    def __post_init__(self) -> None:
+        if not (self.features or self.centroids or self.thresholds):
+            return
+        n = len(self.features)
+        if n == 0 or any(f not in FEATURES for f in self.features):
+            raise ParameterError("features", self.features, "a non-empty tuple of " + str(FEATURES))
+        if not self.centroids or any(len(c) != n for c in self.centroids):
+            raise ParameterError("centroids", self.centroids, f"one {n}-tuple per component")
+        if len(self.thresholds) != len(self.centroids) or any(len(t) != n for t in self.thresholds):
+            raise ParameterError("thresholds", self.thresholds, "the shape of centroids")
+        for c in np.ravel(self.centroids):
+            _check_value_range("centroids", float(c), 0.0, 255.0)
+        for t in np.ravel(self.thresholds):
+            _check_value_range("thresholds", float(t), 0.0, 1.0)
+
+    @property
+    def is_multi(self) -> bool:
+        """Whether this is a multi-centroid (or multi-feature) model."""
+        return bool(self.centroids)
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(json.dumps({"kind": "qdcnn-shadow-model", **asdict(self)}, indent=2))
+        data = {"kind": "qdcnn-shadow-model", **asdict(self)}
+        if not self.is_multi:  # paper models keep the original file layout
+            for key in ("features", "centroids", "thresholds"):
+                data.pop(key)
+        p.write_text(json.dumps(data, indent=2))
         return p
 
     @classmethod
@@ -290,11 +392,19 @@ class ShadowModel:
                 float(data["centroid"]),
                 float(data["threshold"]),
                 dict(data.get("meta", {})),
+                tuple(str(f) for f in data.get("features", ())),
+                tuple(tuple(float(v) for v in c) for c in data.get("centroids", ())),
+                tuple(tuple(float(v) for v in t) for t in data.get("thresholds", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(p, f"shadow model is missing or has a bad field: {exc}") from None
         ShadowConfig(feature=model.feature, centroid=model.centroid, threshold=model.threshold)  # type: ignore[arg-type]
         return model
+
+
+def _check_value_range(name: str, value: float, lo: float, hi: float) -> None:
+    if not (np.isfinite(value) and lo <= value <= hi):
+        raise ParameterError(name, value, f"numbers in [{lo}, {hi}]")
 
 
 def detect_shadows_uu(
@@ -329,6 +439,8 @@ def detect_shadows_uu(
     ShadowDetection
     """
     cfg = config or ShadowConfig()
+    if model is not None and model.is_multi:
+        return _detect_multi(image, cfg, model, backend, noise, rng)
     if model is not None:
         cfg = replace(cfg, feature=model.feature, threshold=model.threshold)  # type: ignore[arg-type]
     values = feature_input(image, cfg.feature)
@@ -348,103 +460,121 @@ def detect_shadows_uu(
         noise=noise,
         rng=rng,
     ).reshape(blocks.shape)
-    full = expand_blocks(scores >= cfg.threshold, geometry).view(np.uint8)
-    if cfg.median_ksize > 1:
-        full = binary_median(full, cfg.median_ksize)
+    block_mask = scores >= cfg.threshold
     return ShadowDetection(
-        full.astype(bool), blocks, scores, centroid, cfg.threshold, cfg.feature, source
+        _to_image_mask(block_mask, geometry, cfg.median_ksize),
+        blocks,
+        scores,
+        centroid,
+        cfg.threshold,
+        cfg.feature,
+        source,
+        block_mask,
     )
 
 
-def block_shadow_fraction(mask: NDArray[np.bool_], config: ShadowConfig) -> NDArray[np.float64]:
-    """Fraction of shadow pixels of a ground-truth mask in each block of ``config``'s grid."""
-    geometry = block_grid(mask.shape[:2], config.downsample, config.grid)
-    return block_means(mask.astype(np.uint8), geometry, config.downsample)
+def _to_image_mask(
+    block_mask: NDArray[np.bool_], geometry: BlockGrid, median_ksize: int
+) -> NDArray[np.bool_]:
+    full = expand_blocks(block_mask, geometry).view(np.uint8)
+    if median_ksize > 1:
+        full = binary_median(full, median_ksize)
+    return full.astype(bool)
 
 
-def train_centroid(
-    values: NDArray[np.float64], config: ShadowConfig | None = None, start: float | None = None
-) -> float:
-    """Centroid (value units) trained on shadow values by the propagation algorithm.
+def _detect_multi(
+    image: NDArray[np.uint8],
+    cfg: ShadowConfig,
+    model: ShadowModel,
+    backend: str,
+    noise: NoiseSpec | None,
+    rng: int | np.random.Generator | None,
+) -> ShadowDetection:
+    if cfg.centroid is not None:
+        raise ParameterError(
+            "shadow.centroid", cfg.centroid, "None with a multi-centroid model (it has its own)"
+        )
+    geometry = block_grid(image.shape[:2], cfg.downsample, cfg.grid)
+    values = np.stack(
+        [block_means(feature_input(image, f), geometry, cfg.downsample) for f in model.features]
+    )
+    accepted, scores = multi_centroid_test(
+        values.reshape(len(model.features), -1),
+        np.asarray(model.centroids),
+        np.asarray(model.thresholds),
+        shots=cfg.shots,
+        backend=backend,
+        noise=noise,
+        rng=rng,
+    )
+    block_mask = accepted.reshape(geometry.grid_shape)
+    return ShadowDetection(
+        _to_image_mask(block_mask, geometry, cfg.median_ksize),
+        values[0],
+        scores.reshape(geometry.grid_shape),
+        model.centroid,
+        model.threshold,
+        "+".join(model.features),
+        "model",
+        block_mask,
+        values,
+    )
+
+
+def multi_centroid_test(
+    values: NDArray[np.float64],
+    centroids: NDArray[np.float64],
+    thresholds: NDArray[np.float64],
+    *,
+    shots: int | None = 1024,
+    backend: str = "numpy",
+    noise: NoiseSpec | None = None,
+    rng: int | np.random.Generator | None = None,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """UU-dagger tests of ``N`` blocks against ``k`` components of ``F`` features each.
+
+    A block belongs to a component when every feature's one-qubit fidelity
+    with that component's centroid reaches its threshold, and is shadow when it
+    belongs to any component. The features are tested in order as a cascade:
+    the circuit of feature ``f`` runs only for the (block, component) pairs that
+    passed features ``0 .. f-1`` (the others cannot pass any more), in one
+    batched run per feature. The decisions are those of running every circuit.
 
     Parameters
     ----------
-    values : ndarray
-        Feature values of shadow pixels or blocks (e.g. a shadow crop).
-    config : ShadowConfig, optional
-        Iterations and tolerance of the propagation algorithm.
-    start : float, optional
-        Initial guess in value units; the median of ``values`` by default.
+    values : ndarray, shape (F, N)
+        Block values in value units.
+    centroids, thresholds : ndarray, shape (k, F)
+        Centroids (value units) and fidelity thresholds.
+    shots, backend, noise, rng
+        As for :func:`qdcnn.quantum.uu_dagger.fidelity`.
+
+    Returns
+    -------
+    accepted : ndarray of bool, shape (N,)
+    scores : ndarray of float64, shape (N,)
+        Highest product of the fidelities over the components whose circuits all
+        ran for the block; 0 where none did.
     """
-    cfg = config or ShadowConfig()
-    res = propagate_centroid(
-        value_to_angle(values),
-        None if start is None else float(value_to_angle(start)),
-        iterations=cfg.propagation_iterations,
-        tol=cfg.propagation_tol,
-    )
-    return float(np.clip(angle_to_value(res.theta), 0.0, 255.0))
-
-
-def train_from_crop(
-    image: NDArray[np.uint8],
-    box: tuple[int, int, int, int],
-    config: ShadowConfig | None = None,
-) -> ShadowModel:
-    """Train the centroid on a crop ``(x0, y0, x1, y1)`` of a shadow region (the paper's way)."""
-    cfg = config or ShadowConfig()
-    x0, y0, x1, y1 = box
-    h, w = image.shape[:2]
-    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
-        raise ParameterError("box", box, f"x0 < x1 <= {w} and y0 < y1 <= {h} (pixels)")
-    crop = feature_map(image[y0:y1, x0:x1], cfg.feature)
-    centroid = train_centroid(crop.ravel().astype(np.float64), cfg)
-    return ShadowModel(
-        cfg.feature, centroid, cfg.threshold, {"trained_on": "crop", "box": list(box)}
-    )
-
-
-def train_shadow_model(
-    images: list[NDArray[np.uint8]],
-    masks: list[NDArray[np.bool_]],
-    config: ShadowConfig | None = None,
-    thresholds: tuple[float, ...] | None = None,
-) -> ShadowModel:
-    """Train a centroid (and optionally pick a threshold) on images with shadow masks.
-
-    Blocks that are at least half shadow in the ground truth form the training
-    set of the propagation algorithm. With ``thresholds``, the one giving the
-    lowest block-level balanced error rate on the training set is kept;
-    otherwise ``config.threshold``.
-    """
-    cfg = config or ShadowConfig()
-    if len(images) != len(masks) or not images:
-        raise ParameterError(
-            "images/masks", f"{len(images)}/{len(masks)}", "equal, non-zero counts"
+    gen = None if shots is None else as_generator(rng)
+    k, n_features = centroids.shape
+    n = values.shape[1]
+    theta_c = value_to_angle(centroids)
+    theta_x = value_to_angle(values)
+    pairs = np.arange(k * n)  # (component, block) pairs still alive, component-major
+    product = np.ones(k * n)
+    for f in range(n_features):
+        if pairs.size == 0:
+            break
+        comp, block = np.divmod(pairs, n)
+        s = fidelity(
+            theta_c[comp, f], theta_x[f, block], shots=shots, backend=backend, noise=noise, rng=gen
         )
-    values, fractions = [], []
-    for image, mask in zip(images, masks, strict=True):
-        geometry = block_grid(image.shape[:2], cfg.downsample, cfg.grid)
-        values.append(
-            block_means(feature_input(image, cfg.feature), geometry, cfg.downsample).ravel()
-        )
-        fractions.append(block_shadow_fraction(mask, cfg).ravel())
-    v, f = np.concatenate(values), np.concatenate(fractions)
-    shadow = f >= 0.5
-    if not shadow.any():
-        raise ParameterError("masks", "no shadow blocks", "at least one block that is half shadow")
-    centroid = train_centroid(v[shadow], cfg)
-    threshold = cfg.threshold
-    if thresholds:
-        scores = fidelity(value_to_angle(centroid), value_to_angle(v), shots=None)
-        bers = [_block_ber(scores >= t, shadow) for t in thresholds]
-        threshold = float(thresholds[int(np.argmin(bers))])
-    meta = {"trained_on": "images+masks", "images": len(images), "shadow_blocks": int(shadow.sum())}
-    return ShadowModel(cfg.feature, centroid, threshold, meta)
-
-
-def _block_ber(pred: NDArray[np.bool_], gt: NDArray[np.bool_]) -> float:
-    pos, neg = gt.sum(), (~gt).sum()
-    fnr = (~pred & gt).sum() / pos if pos else 0.0
-    fpr = (pred & ~gt).sum() / neg if neg else 0.0
-    return float(50.0 * (fnr + fpr))
+        passed = s >= thresholds[comp, f]
+        product[pairs] *= s
+        if f < n_features - 1:
+            product[pairs[~passed]] = 0.0  # the cascade stops here for these pairs
+        pairs = pairs[passed]
+    accepted = np.zeros(n, dtype=bool)
+    accepted[pairs % n] = True
+    return accepted, product.reshape(k, n).max(axis=0)
