@@ -64,6 +64,9 @@ def detect_shadows_cmd(
     ] = None,
     centroid: Annotated[float | None, typer.Option(help="Shadow centroid in [0, 255].")] = None,
     model: Annotated[Path | None, typer.Option(help="Model file from train-shadows.")] = None,
+    calibration_classes: Annotated[
+        int, typer.Option(help="Clusters of the per-image calibration start (paper: 2).")
+    ] = 2,
     seed: Annotated[int, typer.Option(help="Seed of shot sampling.")] = 0,
     as_json: JsonOpt = False,
 ) -> None:
@@ -81,7 +84,7 @@ def detect_shadows_cmd(
     try:
         check_method(method)
         check_backend(backend)
-        cfg = ShadowConfig(shots=None if exact else shots)
+        cfg = ShadowConfig(shots=None if exact else shots, calibration_classes=calibration_classes)
         if threshold is not None:
             cfg = replace(cfg, threshold=threshold)
         if centroid is not None:
@@ -225,42 +228,60 @@ def synth_cmd(
 def train_shadows_cmd(
     data: Annotated[Path, typer.Option(help="Shadow set: DIR/images/* and DIR/masks/<stem>.png.")],
     out_file: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
-    feature: Annotated[str, typer.Option(help="intensity | chromaticity")] = "intensity",
+    features: Annotated[
+        str, typer.Option(help="intensity | chromaticity | intensity,chromaticity")
+    ] = "intensity",
+    centroids: Annotated[
+        int, typer.Option(help="Components (1: the paper's single centroid).")
+    ] = 1,
     search_threshold: Annotated[
         bool, typer.Option(help="Pick the threshold with the lowest training BER.")
     ] = True,
+    seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Train a UU-dagger shadow centroid (and threshold) on images with masks."""
+    """Train a UU-dagger shadow model on images with masks.
+
+    One feature and one centroid is the paper's model (centroid by the propagation
+    algorithm, threshold from the paper's candidates). Several features or centroids
+    train the multi-centroid model: one centroid and threshold per feature and component.
+    """
+    from qdcnn.errors import ParameterError
     from qdcnn.experiments.shadow_batch import load_shadow_set
-    from qdcnn.vision.shadow_training import train_shadow_model
+    from qdcnn.vision.shadow_training import train_multi_shadow_model, train_shadow_model
+    from qdcnn.vision.shadows import FEATURES
 
     try:
+        names = tuple(f.strip() for f in features.split(",") if f.strip())
+        if not names or any(f not in FEATURES for f in names) or len(set(names)) != len(names):
+            raise ParameterError("features", features, "intensity and/or chromaticity")
+        if not 1 <= centroids <= 8:
+            raise ParameterError("centroids", centroids, "an integer in [1, 8]")
         images, masks, failures = load_shadow_set(data)
         for f in failures:
             report_error(f.error)
-        cfg = ShadowConfig(feature=feature, shots=None)  # type: ignore[arg-type]
-        grid = tuple(float(t) for t in (0.75, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999))
-        model = train_shadow_model(
-            images, masks, cfg, thresholds=grid if search_threshold else None
-        )
+        cfg = ShadowConfig(feature=names[0], shots=None)  # type: ignore[arg-type]
+        if len(names) == 1 and centroids == 1:
+            grid = (0.75, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999)
+            model = train_shadow_model(
+                images, masks, cfg, thresholds=grid if search_threshold else None
+            )
+        else:
+            model = train_multi_shadow_model(
+                images, masks, cfg, features=names, n_centroids=centroids, seed=seed
+            )
         model.save(out_file)
     except QdcnnError as exc:
         raise fail_on_error(exc) from None
     result = {
         "model": str(out_file),
-        "feature": model.feature,
-        "centroid": model.centroid,
-        "threshold": model.threshold,
-        **model.meta,
+        **model.to_dict(),
         "failures": [f.to_dict() for f in failures],
     }
     if as_json:
         emit(result)
     else:
-        out.print(
-            f"centroid {model.centroid:.2f}, threshold {model.threshold}, written to {out_file}"
-        )
+        out.print(f"{model.describe()}; written to {out_file}")
     raise typer.Exit(1 if failures else 0)
 
 

@@ -365,6 +365,34 @@ class ShadowModel:
         """Whether this is a multi-centroid (or multi-feature) model."""
         return bool(self.centroids)
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values for JSON output (the multi-centroid fields only when used)."""
+        out: dict[str, Any] = {
+            "feature": self.feature,
+            "centroid": self.centroid,
+            "threshold": self.threshold,
+            **self.meta,
+        }
+        if self.is_multi:
+            out.update(
+                features=list(self.features),
+                centroids=[list(c) for c in self.centroids],
+                thresholds=[list(t) for t in self.thresholds],
+            )
+        return out
+
+    def describe(self) -> str:
+        """One line for people: the centroid(s) and threshold(s)."""
+        if not self.is_multi:
+            return f"{self.feature} centroid {self.centroid:.2f}, threshold {self.threshold}"
+        parts = [
+            " & ".join(
+                f"{f} {c:.1f} (>= {t:.4f})" for f, c, t in zip(self.features, cs, ts, strict=True)
+            )
+            for cs, ts in zip(self.centroids, self.thresholds, strict=True)
+        ]
+        return f"{len(parts)} components: " + "; ".join(parts)
+
     def save(self, path: str | os.PathLike[str]) -> Path:
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
