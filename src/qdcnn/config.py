@@ -120,6 +120,15 @@ class LaneConfig:
         Relative ROI polygon applied to the edge map.
     hough_rho, hough_theta, hough_threshold, hough_min_line_length, hough_max_line_gap
         ``cv2.HoughLinesP`` settings (paper: 1, pi/180, 8, 2, 25).
+    edge_channels : {"grey", "rgb"}
+        What Canny sees. ``"grey"`` (the paper): the greyscale frame. ``"rgb"`` (not the
+        paper's): the three colour channels, smoothed alike, with OpenCV's colour Canny,
+        which keeps at each pixel the channel of largest gradient, so a yellow line on
+        grey asphalt (nearly equal in grey) still gives edges.
+    min_segment_angle : float
+        Hough segments less steep than this many degrees from the horizontal are dropped
+        (0, the paper: keep all). Near-horizontal segments come from kerb tops, shadows
+        and the horizon rather than from the lane borders.
     """
 
     ROI_PRESETS: ClassVar[dict[str, tuple[tuple[float, float], ...]]] = {
@@ -159,6 +168,8 @@ class LaneConfig:
     hough_threshold: int = 8
     hough_min_line_length: int = 2
     hough_max_line_gap: int = 25
+    edge_channels: Literal["grey", "rgb"] = "grey"
+    min_segment_angle: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("median_ksize", "blur_ksize"):
@@ -194,6 +205,9 @@ class LaneConfig:
         _check_int("lanes.hough_threshold", self.hough_threshold, 1, 10**6)
         _check_int("lanes.hough_min_line_length", self.hough_min_line_length, 0, 10**6)
         _check_int("lanes.hough_max_line_gap", self.hough_max_line_gap, 0, 10**6)
+        if self.edge_channels not in ("grey", "rgb"):
+            raise ParameterError("lanes.edge_channels", self.edge_channels, "'grey' or 'rgb'")
+        _check_range("lanes.min_segment_angle", self.min_segment_angle, 0.0, 90.0)
 
     @classmethod
     def udacity(cls, **changes: Any) -> LaneConfig:
@@ -213,11 +227,19 @@ class GroupingConfig:
     ----------
     method : {"image-split", "kmeans", "spectral"}
         How segments are split into two groups (:mod:`qdcnn.vision.grouping`).
-    features : {"slopes"}
-        The paper's feature vector: the two fitted slopes dx/dy, left line first.
+    features : str
+        Feature mode: the two columns a 2-input classifier uses (:attr:`FEATURE_MODES`).
+        ``"slopes"`` (the paper): the two fitted slopes dx/dy, left line first. The
+        others (not the paper's) need their extras in ``extra_features``
+        (:meth:`for_features` adds them): ``"far-offsets"`` (x of each line at a far
+        row), ``"road-centre"`` (x of the centre line at a far and a near row) and
+        ``"vanishing-points"`` (x of the vanishing point of the whole lines and of lines
+        fitted to the near segments). The feature vector always starts with the two slopes.
     extra_features : tuple of str
         Named additions appended after the two slopes (not the paper's): any of
-        ``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``.
+        ``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``, ``"far-offsets"``,
+        ``"road-centre"``, ``"near-vanishing-point-offset"``
+        (:mod:`qdcnn.vision.grouping`).
     merge_tolerance : float or None
         Two groups that one line fits within this fraction of the width (weighted RMS)
         are one line, status "one-line"; ``None`` keeps two slopes whenever there are
@@ -226,25 +248,70 @@ class GroupingConfig:
         Seed of k-means and spectral clustering.
     """
 
+    #: mode -> (its two column names, the extras that compute them)
+    FEATURE_MODES: ClassVar[dict[str, tuple[tuple[str, str], tuple[str, ...]]]] = {
+        "slopes": (("slope_left", "slope_right"), ()),
+        "far-offsets": (("far_left", "far_right"), ("far-offsets",)),
+        "road-centre": (("centre_far", "centre_near"), ("road-centre",)),
+        "vanishing-points": (
+            ("vanishing_point_offset", "near_vanishing_point_offset"),
+            ("vanishing-point-offset", "near-vanishing-point-offset"),
+        ),
+    }
+    EXTRAS: ClassVar[tuple[str, ...]] = (
+        "intercepts",
+        "angles",
+        "vanishing-point-offset",
+        "far-offsets",
+        "road-centre",
+        "near-vanishing-point-offset",
+    )
+
     method: Literal["image-split", "kmeans", "spectral"] = "image-split"
-    features: Literal["slopes"] = "slopes"
+    features: str = "slopes"
     extra_features: tuple[str, ...] = ()
     merge_tolerance: float | None = 0.03
     seed: int = 0
+
+    @classmethod
+    def for_features(cls, features: str, **changes: Any) -> GroupingConfig:
+        """A config for feature mode ``features`` with the extras it needs appended.
+
+        Examples
+        --------
+        >>> GroupingConfig.for_features("far-offsets").extra_features
+        ('far-offsets',)
+        """
+        if features not in cls.FEATURE_MODES:
+            allowed = ", ".join(map(repr, cls.FEATURE_MODES))
+            raise ParameterError("grouping.features", features, f"one of {allowed}")
+        extras = tuple(changes.pop("extra_features", ()))
+        extras += tuple(e for e in cls.FEATURE_MODES[features][1] if e not in extras)
+        return cls(features=features, extra_features=extras, **changes)
 
     def __post_init__(self) -> None:
         if self.method not in ("image-split", "kmeans", "spectral"):
             raise ParameterError(
                 "grouping.method", self.method, "'image-split', 'kmeans' or 'spectral'"
             )
-        if self.features != "slopes":
-            raise ParameterError("grouping.features", self.features, "'slopes'")
-        allowed = ("intercepts", "angles", "vanishing-point-offset")
+        if self.features not in self.FEATURE_MODES:
+            allowed = ", ".join(map(repr, self.FEATURE_MODES))
+            raise ParameterError("grouping.features", self.features, f"one of {allowed}")
         for extra in self.extra_features:
-            if extra not in allowed:
+            if extra not in self.EXTRAS:
                 raise ParameterError(
-                    "grouping.extra_features", extra, "one of " + ", ".join(map(repr, allowed))
+                    "grouping.extra_features",
+                    extra,
+                    "one of " + ", ".join(map(repr, self.EXTRAS)),
                 )
+        needed = self.FEATURE_MODES[self.features][1]
+        if any(e not in self.extra_features for e in needed):
+            raise ParameterError(
+                "grouping.extra_features",
+                self.extra_features,
+                f"to include {needed} for features={self.features!r}"
+                " (GroupingConfig.for_features adds them)",
+            )
         if self.merge_tolerance is not None:
             _check_range("grouping.merge_tolerance", self.merge_tolerance, 0.0, 1.0)
 

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from qdcnn.config import GroupingConfig
 from qdcnn.data.images import write_image
 from qdcnn.data.synthetic import generate_drive
 from qdcnn.data.writers import write_udacity
@@ -14,6 +16,7 @@ from qdcnn.errors import ParameterError
 from qdcnn.experiments.datasets import load_frameset, parse_spec
 from qdcnn.experiments.direction_model import default_config
 from qdcnn.experiments.features import compute_features
+from qdcnn.pipeline import process_frame
 
 
 @pytest.mark.parametrize(
@@ -69,3 +72,20 @@ def test_features_are_cached_and_unreadable_frames_listed(
     write_image(frames[4], fs.image(3))
     third = compute_features(load_frameset(f"udacity:{rec}"), cfg, ("image-split", "kmeans"))
     assert not third.cached and third.readable.all()
+
+
+def test_feature_modes_with_two_column_extras_fill_every_column(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    fs = load_frameset("synthetic:track1:10", seed=2)
+    cfg = replace(default_config(), grouping=GroupingConfig.for_features("road-centre"))
+    table = compute_features(fs, cfg, ("image-split",))
+    feats = table.features["image-split"]
+    assert feats.shape == (10, 4)  # two slopes, then the centre line at the far and near rows
+    rng = np.random.default_rng(cfg.seed)  # shot-sampled shadow removal draws in frame order
+    for i in range(len(fs)):
+        direct = process_frame(fs.image(i), cfg, ("image-split",), rng=rng).lanes["image-split"]
+        np.testing.assert_array_equal(feats[i], direct.features)
+    ok = table.status["image-split"] == "ok"
+    assert ok.any() and np.isfinite(feats[ok]).all()

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from qdcnn.config import GroupingConfig, PipelineConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import (
     QUANTUM_METHODS,
     contiguous_folds,
     evaluate_features,
     majority_accuracy,
+    make_classifier,
     summarise,
 )
 
@@ -85,3 +89,61 @@ def test_single_class_labels_are_an_error() -> None:
 def test_paper_has_six_quantum_methods() -> None:
     assert len(QUANTUM_METHODS) == 6
     assert {k for _, k in QUANTUM_METHODS.values()} == {"uu", "vqc"}
+
+
+def test_paper_mode_keeps_the_paper_grids_and_reads_all_columns() -> None:
+    uu, uu_grid = make_classifier("uu", PipelineConfig())
+    assert uu.get_params()["feature_columns"] is None
+    assert uu_grid == {"angle_map": ["arctan", "minmax"]}
+    vqc, vqc_grid = make_classifier("vqc", PipelineConfig())
+    assert vqc.get_params()["feature_columns"] is None and vqc.get_params()["restarts"] == 1
+    assert vqc_grid == {"interpret": ["min2", "mod3"]}
+
+
+@pytest.mark.parametrize(
+    ("mode", "extras", "columns"),
+    [
+        ("slopes", ("angles",), (0, 1)),
+        ("far-offsets", ("far-offsets",), (2, 3)),
+        ("road-centre", ("intercepts", "road-centre"), (4, 5)),
+        ("vanishing-points", ("near-vanishing-point-offset", "vanishing-point-offset"), (3, 2)),
+    ],
+)
+def test_other_modes_pick_their_columns_and_widen_the_vqc_grid(
+    mode: str, extras: tuple[str, ...], columns: tuple[int, int]
+) -> None:
+    cfg = replace(PipelineConfig(), grouping=GroupingConfig(features=mode, extra_features=extras))
+    uu, uu_grid = make_classifier("uu", cfg)
+    assert uu.get_params()["feature_columns"] == columns
+    assert uu_grid == {"angle_map": ["arctan", "minmax"]}
+    vqc, grid = make_classifier("vqc", cfg)
+    assert vqc.get_params()["feature_columns"] == columns
+    if mode == "slopes":
+        assert grid == {"interpret": ["min2", "mod3"]}
+    else:
+        assert vqc.get_params()["restarts"] == 3
+        assert grid == {
+            "interpret": ["min2", "mod3"],
+            "angle_span": [1.0, 0.5],
+            "feature_map_reps": [1, 2],
+        }
+
+
+def test_mode_needs_its_extras() -> None:
+    with pytest.raises(ParameterError, match="to include \\('road-centre',\\)"):
+        GroupingConfig(features="road-centre")
+    with pytest.raises(ParameterError, match="grouping.features='curvature' is invalid"):
+        GroupingConfig.for_features("curvature")
+
+
+def test_evaluation_reads_only_the_mode_columns(rng: np.random.Generator) -> None:
+    # the slopes are noise; the road-centre columns carry the direction (the far centre
+    # moves with the bend, the near one stays in front of the car; UU compares the two)
+    y = np.repeat([0, 1, 2, 1, 0, 2, 1, 2, 0, 1], 30)
+    shift = np.array([-0.3, 0.0, 0.3])[y]
+    centre = np.column_stack([shift, 0.0 * shift]) + rng.normal(0, 0.03, (y.size, 2))
+    X = np.column_stack([rng.normal(0, 1, (y.size, 2)), centre])
+    cfg = replace(PipelineConfig(), grouping=GroupingConfig.for_features("road-centre"))
+    paper = evaluate_features("image-split-uu", "toy", X[:, :2], y, folds=5, gap=2)
+    mode = evaluate_features("image-split-uu", "toy", X, y, config=cfg, folds=5, gap=2)
+    assert paper.accuracy < 0.6 < 0.9 < mode.accuracy

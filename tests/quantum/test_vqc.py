@@ -208,6 +208,44 @@ def test_feature_columns_pick_the_slopes_of_a_wider_table(rng: np.random.Generat
     np.testing.assert_allclose(a.predict_proba(X), b.predict_proba(wide))
 
 
+@pytest.mark.parametrize("scaling", ["minmax", "arctan"])
+def test_angle_span_shrinks_the_angles_towards_half_pi(
+    rng: np.random.Generator, scaling: str
+) -> None:
+    X, y = road_slopes(60, rng)
+    full = VQCClassifier(maxiter=6, scaling=scaling).fit(X, y)
+    half = VQCClassifier(maxiter=6, scaling=scaling, angle_span=0.5).fit(X, y)
+    a, b = full.scale_features(X), half.scale_features(X)
+    np.testing.assert_allclose(b, np.pi / 2 + 0.5 * (a - np.pi / 2), atol=1e-12)
+    assert b.min() >= np.pi / 4 - 1e-12 and b.max() <= 3 * np.pi / 4 + 1e-12
+    if scaling == "minmax":  # the 1st and 99th percentiles go to the ends of the span
+        lo, hi = np.percentile(X, [1, 99], axis=0)
+        np.testing.assert_allclose(
+            half.scale_features(np.vstack([lo, hi])), [[np.pi / 4] * 2, [3 * np.pi / 4] * 2]
+        )
+
+
+def test_restarts_keep_the_run_of_lowest_training_objective(rng: np.random.Generator) -> None:
+    X, y = road_slopes(60, rng)
+    one = VQCClassifier(maxiter=10).fit(X, y)
+    three = VQCClassifier(maxiter=10, restarts=3).fit(X, y)
+    assert three.objective_ <= one.objective_
+    assert len(three.objective_history_) == len(three.weight_history_) > 0
+    # the kept history is one run's: it starts at the kept run's starting point
+    np.testing.assert_array_equal(three.weight_history_[0], three.initial_weights_)
+    if three.objective_ == one.objective_:  # restart 0 is the single run
+        np.testing.assert_array_equal(three.weights_, one.weights_)
+    with pytest.raises(ParameterError, match="^restarts=0 is invalid"):
+        VQCClassifier(restarts=0).fit(X, y)
+
+
+def test_angle_span_must_be_in_zero_one(rng: np.random.Generator) -> None:
+    X, y = road_slopes(20, rng)
+    for span in (0.0, 1.5, True):
+        with pytest.raises(ParameterError, match=f"^angle_span={span!r} is invalid: a number in"):
+            VQCClassifier(angle_span=span).fit(X, y)
+
+
 def test_sklearn_compatibility(rng: np.random.Generator) -> None:
     X, y = road_slopes(90, rng)
     clf = VQCClassifier(maxiter=10, scaling="arctan")

@@ -13,12 +13,17 @@ from qdcnn.config import GroupingConfig, LaneConfig
 from qdcnn.data.images import list_images, read_image
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.grouping import (
+    EXTRA_FEATURES,
+    FAR_ROW,
     METHODS,
+    NEAR_PART,
+    NEAR_ROW,
     extract_features_batch,
     extract_lane_features,
     feature_names,
     fit_line,
     group_segments,
+    mode_columns,
     segment_descriptors,
 )
 from qdcnn.vision.lanes import detect_segments
@@ -247,6 +252,97 @@ def test_extra_features_are_appended_after_the_slopes() -> None:
     np.testing.assert_array_equal(plain.features, result.features[:2])
 
 
+def rel(x: float) -> float:
+    return x / (W - 1) - 0.5
+
+
+def test_far_offsets_and_road_centre_known_answers() -> None:
+    # left line x = -0.75 y + 152.5, right line x = 0.75 y + 160
+    segments = np.array([[100.0, 70, 40, 150], [220, 80, 280, 160]])
+    result = group_segments(segments, SHAPE, extra_features=("far-offsets", "road-centre"))
+    assert result.feature_names[2:] == ("far_left", "far_right", "centre_far", "centre_near")
+    far, near = FAR_ROW * (H - 1), NEAR_ROW * (H - 1)
+    left_far, right_far = -0.75 * far + 152.5, 0.75 * far + 160
+    left_near, right_near = -0.75 * near + 152.5, 0.75 * near + 160
+    expected = [
+        rel(left_far),
+        rel(right_far),
+        rel((left_far + right_far) / 2),
+        rel((left_near + right_near) / 2),
+    ]
+    np.testing.assert_allclose(result.features[2:], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_near_vanishing_point_uses_only_the_near_segments() -> None:
+    # a road bending right: the near parts (lower end at the bottom row) head for x = 200,
+    # the far parts (lower end at y = 100, above NEAR_PART) for x = 120, both at y = 40
+    assert 100 < NEAR_PART * (H - 1) <= 159
+
+    def on(x_bottom: float, y_bottom: float, x_vp: float, y: float) -> float:
+        return x_vp + (x_bottom - x_vp) * (y - 40) / (y_bottom - 40)
+
+    segments = np.array(
+        [
+            [on(60, 159, 200, 120), 120, 60, 159],
+            [on(330, 159, 200, 120), 120, 330, 159],
+            [on(20, 100, 120, 60), 60, 20, 100],
+            [on(250, 100, 120, 60), 60, 250, 100],
+        ]
+    )
+    result = group_segments(
+        segments, SHAPE, extra_features=("vanishing-point-offset", "near-vanishing-point-offset")
+    )
+    assert result.status == "ok"
+    np.testing.assert_allclose(result.features[3], rel(200.0), atol=1e-9)
+    assert abs(result.features[2] - result.features[3]) > 0.1  # whole lines: elsewhere
+
+
+def test_near_vanishing_point_is_nan_without_near_segments_on_both_sides() -> None:
+    segments = np.array([[100.0, 60, 80, 100], [220, 60, 240, 100], [80, 130, 60, 159]])
+    result = group_segments(segments, SHAPE, extra_features=("near-vanishing-point-offset",))
+    assert result.status == "ok" and np.isnan(result.features[2])
+
+
+def drawn_x(line: tuple[int, int, int, int], row: float) -> float:
+    x1, y1, x2, y2 = line
+    return x1 + (x2 - x1) * (row * (H - 1) - y1) / (y2 - y1)
+
+
+def drawn_crossing(lines: list[tuple[int, int, int, int]]) -> float:
+    (a, b), (c, d) = [
+        ((x2 - x1) / (y2 - y1), x1 - (x2 - x1) / (y2 - y1) * y1) for x1, y1, x2, y2 in lines
+    ]
+    return a * (d - b) / (a - c) + b
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("pair", PAIRS)
+def test_new_extras_match_drawn_lines(method: str, pair: str) -> None:
+    lines = PAIRS[pair]
+    extras = ("far-offsets", "road-centre", "near-vanishing-point-offset")
+    result = extract_lane_features(road(lines), UDACITY, method, extra_features=extras)
+    far = [drawn_x(line, FAR_ROW) for line in lines]
+    near = [drawn_x(line, NEAR_ROW) for line in lines]
+    expected = [rel(far[0]), rel(far[1]), rel(sum(far) / 2), rel(sum(near) / 2)]
+    # 0.01 of the width is 3 px: the fitted lines follow the stripes' borders
+    np.testing.assert_allclose(result.features[2:6], expected, atol=0.01)
+    # straight lines: the near parts meet where the whole lines do (up to 2 widths away)
+    np.testing.assert_allclose(result.features[6], rel(drawn_crossing(lines)), rtol=0.05, atol=0.01)
+
+
+def test_feature_modes_name_columns_of_their_extras() -> None:
+    assert set(EXTRA_FEATURES) == set(GroupingConfig.EXTRAS)
+    for mode, (columns, extras) in GroupingConfig.FEATURE_MODES.items():
+        cfg = GroupingConfig.for_features(mode, extra_features=("angles",))
+        assert cfg.features == mode and cfg.extra_features[0] == "angles"
+        i, j = mode_columns(mode, cfg.extra_features)
+        names = feature_names(cfg.extra_features)
+        assert (names[i], names[j]) == columns
+        assert set(extras) <= set(cfg.extra_features)
+    assert mode_columns("slopes") == (0, 1)
+    assert mode_columns("far-offsets", ("angles", "far-offsets")) == (4, 5)
+
+
 def test_batch_stacks_rows_and_statuses() -> None:
     blank = np.full((H, W, 3), 90, np.uint8)
     images = [road(PAIRS["straight"]), blank, road(PAIRS["straight"][:1])]
@@ -274,6 +370,14 @@ def test_unknown_method_or_extra_raises_parameter_error() -> None:
         group_segments(seg, SHAPE, "dbscan")
     with pytest.raises(ParameterError, match=r"^extra_features='curvature' is invalid"):
         group_segments(seg, SHAPE, extra_features=("curvature",))
+    with pytest.raises(ParameterError, match=r"^grouping.features='angles' is invalid"):
+        GroupingConfig(features="angles")
+    with pytest.raises(ParameterError, match=r"^grouping.extra_features=\(\) is invalid: to incl"):
+        GroupingConfig(features="road-centre")
+    with pytest.raises(ParameterError, match=r"^features='x' is invalid"):
+        mode_columns("x")
+    with pytest.raises(ParameterError, match=r"^extra_features=\(\) is invalid: to include"):
+        mode_columns("far-offsets")
     with pytest.raises(ParameterError, match=r"^extra_features='angles' is invalid"):
         group_segments(seg, SHAPE, extra_features="angles")
     with pytest.raises(ParameterError, match=r"^method='Kmeans' is invalid"):

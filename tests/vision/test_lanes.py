@@ -142,8 +142,52 @@ def test_bad_images_raise_one_line_input_errors() -> None:
         ({"roi": ((0.0, 0.0), (1.0, 1.0))}, "lanes.roi"),
         ({"hough_threshold": 0}, "lanes.hough_threshold"),
         ({"smoothing_margin": -2}, "lanes.smoothing_margin"),
+        ({"edge_channels": "hsv"}, "lanes.edge_channels"),
+        ({"min_segment_angle": 95.0}, "lanes.min_segment_angle"),
+        ({"min_segment_angle": -1.0}, "lanes.min_segment_angle"),
     ],
 )
 def test_absurd_lane_settings_raise_parameter_error(change: dict, name: str) -> None:
     with pytest.raises(ParameterError, match=f"^{name}="):
         LaneConfig(**change)
+
+
+# a yellow of the road's own grey level: 0.299 * 170 + 0.587 * 115 + 0.114 * 0 = 118.3
+ROAD_GREY, YELLOW = (118, 118, 118), (170, 115, 0)
+
+
+def yellow_line_road() -> np.ndarray:
+    img = np.full((H, W, 3), ROAD_GREY, np.uint8)
+    cv2.line(img, (60, 159), (140, 72), YELLOW, 3)
+    return img
+
+
+def test_yellow_line_on_equal_grey_is_seen_only_with_colour_edges() -> None:
+    img = yellow_line_road()
+    assert abs(int(to_grey(img)[115, 100]) - ROAD_GREY[0]) <= 1  # the line vanishes in grey
+    assert detect_segments(img, UDACITY).shape == (0, 4)
+    seg = detect_segments(img, replace(UDACITY, edge_channels="rgb"))
+    assert len(seg) >= 1
+    # every endpoint lies on the drawn line (within the stripe's half-width + blur)
+    d = np.array([140 - 60, 72 - 159], float)
+    n = np.array([-d[1], d[0]]) / np.hypot(*d)
+    for px, py in np.vstack([seg[:, :2], seg[:, 2:]]):
+        assert abs((px - 60) * n[0] + (py - 159) * n[1]) < 4.0
+
+
+def test_colour_edges_equal_grey_edges_on_a_grey_frame() -> None:
+    img = road([(60, 159, 140, 70), (260, 159, 180, 70)])
+    rgb = replace(UDACITY, edge_channels="rgb")
+    np.testing.assert_array_equal(lane_edges(img, rgb), lane_edges(img, UDACITY))
+    grey = to_grey(img)  # a grey (2-D) frame has one channel whatever the setting
+    np.testing.assert_array_equal(lane_edges(grey, rgb), lane_edges(grey, UDACITY))
+
+
+def test_min_segment_angle_drops_flat_segments_only() -> None:
+    # one steep line (about 47 degrees from the horizontal) and one flat line (about 5 degrees)
+    img = road([(60, 159, 140, 72), (170, 130, 300, 119)])
+    every = detect_segments(img, UDACITY)
+    steep = np.degrees(np.arctan2(every[:, 3] - every[:, 1], np.abs(every[:, 2] - every[:, 0])))
+    assert (steep < 15).any() and (steep > 40).any()
+    kept = detect_segments(img, replace(UDACITY, min_segment_angle=15.0))
+    np.testing.assert_array_equal(kept, every[steep >= 15.0])

@@ -60,7 +60,27 @@ def contiguous_folds(
 def make_classifier(
     kind: str, config: PipelineConfig, seed: int = 0
 ) -> tuple[BaseEstimator, dict[str, list[Any]]]:
-    """The estimator of a quantum method and its hyperparameter grid for the inner CV."""
+    """The estimator of a quantum method and its hyperparameter grid for the inner CV.
+
+    The estimator reads the two columns of the feature mode ``config.grouping.features``
+    (:func:`qdcnn.vision.grouping.mode_columns`) from a feature table computed with
+    ``config.grouping.extra_features``; with the paper's mode ("slopes") and no extras the
+    table is exactly the two slopes.
+
+    Grids. The paper's mode keeps the original grid (UU: the angle map; VQC: the interpret
+    map). The other (named, not the paper's) modes add to the VQC grid the angle span of
+    the feature scaling (1 or 0.5) and the ZZ feature map's repetitions (1 or 2), and train
+    the VQC from 3 starting points, keeping the lowest training objective
+    (``restarts=3``): on the paper's full span the ZZ map's phase reaches ``2 pi^2``, and
+    from one start COBYLA often ends worse than the majority class.
+    """
+    from qdcnn.vision.grouping import mode_columns
+
+    grouping = config.grouping
+    columns: tuple[int, int] | None = None
+    if grouping.features != "slopes" or grouping.extra_features:
+        columns = mode_columns(grouping.features, grouping.extra_features)
+    paper = grouping.features == "slopes"
     if kind == "uu":
         from qdcnn.quantum.direction import UUDirectionClassifier
 
@@ -68,6 +88,7 @@ def make_classifier(
             straight_margin=config.direction.straight_margin,
             shots=config.direction.shots,
             seed=seed,
+            feature_columns=columns,
         )
         return uu, {"angle_map": ["arctan", "minmax"]}
     from qdcnn.quantum.vqc import VQCClassifier
@@ -79,8 +100,14 @@ def make_classifier(
         loss=config.vqc.loss,
         shots=config.vqc.shots,
         seed=seed,
+        feature_columns=columns,
     )
-    return vqc, {"interpret": ["min2", "mod3"]}
+    grid: dict[str, list[Any]] = {"interpret": ["min2", "mod3"]}
+    if not paper:
+        vqc.set_params(restarts=3)
+        grid["angle_span"] = [1.0, 0.5]
+        grid["feature_map_reps"] = sorted({config.vqc.feature_map_reps, 1})
+    return vqc, grid
 
 
 @dataclass

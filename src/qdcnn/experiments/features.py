@@ -26,6 +26,7 @@ from qdcnn.experiments.batch import Failure, run_batch
 from qdcnn.experiments.datasets import FrameSet
 from qdcnn.pipeline import GROUPINGS, FrameResult, process_frame
 from qdcnn.quantum.sampling import as_generator
+from qdcnn.vision.grouping import feature_names
 
 
 @dataclass
@@ -106,7 +107,8 @@ def compute_features(
     if use_cache and path.is_file():
         return _load(path, groupings)
     n = len(frames)
-    feats = {g: np.full((n, 2 + len(cfg.grouping.extra_features)), np.nan) for g in groupings}
+    width = len(feature_names(cfg.grouping.extra_features))
+    feats = {g: np.full((n, width), np.nan) for g in groupings}
     status = {g: np.full(n, "unreadable", dtype="<U10") for g in groupings}
     readable = np.zeros(n, bool)
     rng = as_generator(cfg.seed)

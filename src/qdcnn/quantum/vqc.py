@@ -46,7 +46,17 @@ with both features finite):
 ``"none"``
     the features are used as angles.
 
-Initial weights are ``uniform(0, 2 pi)`` from ``numpy.random.default_rng(seed)``.
+``angle_span`` (default 1, not the paper's when below 1) shrinks the "minmax" and "arctan"
+angles towards ``pi/2``: ``pi/2 + angle_span * (angle - pi/2)``, so 0.5 uses
+``[pi/4, 3 pi/4]``. The ZZ feature map's entangling phase is ``2 (pi - x1)(pi - x2)``, up
+to ``2 pi^2`` (about 20 rad) on ``[0, pi]``: the class probabilities then oscillate
+several times across the data range, which four angles and 30 COBYLA steps rarely fit.
+A narrower span gives a smoother map.
+
+Initial weights are ``uniform(0, 2 pi)`` from ``numpy.random.default_rng(seed)``; with
+``restarts=k > 1`` (not the paper's) training also runs from ``default_rng([seed, 2, r])``,
+``r = 1 .. k-1``, and keeps the run of lowest final training objective (COBYLA on four
+angles lands in different local minima from different starts).
 Training uses ``train_noise`` and ``shots`` (``None``, the default, is exact); shot
 estimates draw from ``default_rng(seed)``. Prediction uses ``noise`` (or a per-call
 override) and the same ``shots``, re-seeded with ``default_rng([seed, 1])`` on every call.
@@ -252,6 +262,12 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         Basis state -> class map (module docstring).
     scaling : {"minmax", "arctan", "none"}
         Feature -> angle map learned in :meth:`fit` (module docstring).
+    angle_span : float
+        Fraction in ``(0, 1]`` of the "minmax"/"arctan" angle range kept, centred on
+        ``pi/2`` (module docstring); 1 keeps ``[0, pi]``.
+    restarts : int
+        COBYLA runs from different seeded starting points (the first is the single run's);
+        the run with the lowest final training objective is kept. 1 (the paper) is one run.
     shots : int or None
         Shots per circuit in training and prediction; ``None`` (default) is exact.
     backend : {"numpy", "aer"}
@@ -275,7 +291,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
     weights_ : ndarray, shape (2 (ansatz_reps + 1),)
         Trained ansatz angles (Qiskit parameter order).
     initial_weights_ : ndarray
-        The seeded starting point.
+        The seeded starting point (of the kept run).
     objective_history_ : list of float
         Objective value at every COBYLA evaluation, in order (the paper's callback).
     weight_history_ : list of ndarray
@@ -308,6 +324,8 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         seed: int = _DEFAULTS.seed,
         engine: str = "qdcnn",
         feature_columns: tuple[int, int] | None = None,
+        angle_span: float = 1.0,
+        restarts: int = 1,
     ) -> None:
         self.feature_map_reps = feature_map_reps
         self.ansatz_reps = ansatz_reps
@@ -322,6 +340,8 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         self.seed = seed
         self.engine = engine
         self.feature_columns = feature_columns
+        self.angle_span = angle_span
+        self.restarts = restarts
 
     def __sklearn_tags__(self) -> Any:
         tags = super().__sklearn_tags__()
@@ -342,6 +362,14 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         check_noise(self.noise)
         check_noise(self.train_noise, "train_noise")
         _check_int("seed", self.seed, 0)
+        _check_int("restarts", self.restarts, 1)
+        span = self.angle_span
+        if (
+            isinstance(span, bool)
+            or not isinstance(span, int | float | np.integer | np.floating)
+            or not 0.0 < float(span) <= 1.0
+        ):
+            raise ParameterError("angle_span", span, "a number in (0, 1]")
         if self.engine not in ENGINES:
             raise ParameterError("engine", self.engine, "'qdcnn' or 'qiskit-ml'")
         if self.engine == "qiskit-ml" and self.train_noise is not None:
@@ -370,10 +398,12 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         check_is_fitted(self, "scaler_params_")
         feats = check_features(X, self.feature_columns, self.n_features_in_)
         a, b = self.scaler_params_[:, 0], self.scaler_params_[:, 1]
+        span = float(self.angle_span)
         if self.scaling == "minmax":
-            return np.pi * np.clip((feats - a) / (b - a), 0.0, 1.0)
+            unit = np.clip((feats - a) / (b - a), 0.0, 1.0)
+            return np.pi * unit if span == 1.0 else np.pi / 2 + span * np.pi * (unit - 0.5)
         if self.scaling == "arctan":
-            return np.pi / 2 + np.arctan((feats - a) / b)
+            return np.pi / 2 + span * np.arctan((feats - a) / b)
         return feats
 
     # ------------------------------------------------------------ training
@@ -401,17 +431,30 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         self.scaler_params_ = self._fit_scaler(feats[ok])
         angles = self.scale_features(np.asarray(X, dtype=np.float64)[ok])
         onehot = np.eye(N_CLASSES)[labels[ok]]
-        self.initial_weights_ = np.random.default_rng(self.seed).uniform(
-            0.0, 2 * np.pi, self.n_weights
-        )
-        self.objective_history_: list[float] = []
-        self.weight_history_: list[NDArray[np.float64]] = []
-        if self.engine == "qdcnn":
-            weights, value = self._fit_qdcnn(angles, onehot)
-        else:
-            weights, value = self._fit_qiskit_ml(angles, onehot)
-        self.weights_ = np.asarray(weights, dtype=np.float64).copy()
-        self.objective_ = float(value)
+        best: tuple[float, Any, Any, Any, Any] | None = None
+        for restart in range(int(self.restarts)):
+            # restart 0 starts where a single fit does; the others from seeds [seed, 2, r]
+            start_rng = np.random.default_rng(
+                self.seed if restart == 0 else [self.seed, 2, restart]
+            )
+            self.initial_weights_ = start_rng.uniform(0.0, 2 * np.pi, self.n_weights)
+            self.objective_history_: list[float] = []
+            self.weight_history_: list[NDArray[np.float64]] = []
+            if self.engine == "qdcnn":
+                weights, value = self._fit_qdcnn(angles, onehot)
+            else:
+                weights, value = self._fit_qiskit_ml(angles, onehot)
+            if best is None or value < best[0]:
+                best = (
+                    float(value),
+                    np.asarray(weights, dtype=np.float64).copy(),
+                    self.initial_weights_,
+                    self.objective_history_,
+                    self.weight_history_,
+                )
+        assert best is not None
+        self.objective_, self.weights_, self.initial_weights_ = best[0], best[1], best[2]
+        self.objective_history_, self.weight_history_ = best[3], best[4]
         return self
 
     def _fit_qdcnn(

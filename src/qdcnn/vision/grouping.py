@@ -37,6 +37,27 @@ one road edge (e.g. the two borders of one kerb) would give two slopes of the sa
 when one line fits all the segments within ``merge_tolerance`` (3 % of the width by
 default) the frame counts as "one-line". ``merge_tolerance=None`` turns this off.
 
+Extra features and feature modes (not the paper's)
+--------------------------------------------------
+Named extras (``extra_features``) are appended after the two slopes, all from the two
+fitted lines except the last one; x positions are relative to the width, minus 0.5
+(0 = the frame's centre column):
+
+``"intercepts"``, ``"angles"``, ``"vanishing-point-offset"``
+    Where each line meets the bottom row; ``atan(dx/dy)``; x of the lines' intersection.
+``"far-offsets"``
+    x of each line at the far row ``FAR_ROW`` (``far_left``, ``far_right``). Both move
+    left in a left bend and right in a right bend; on a straight road they are mirror
+    images, so the UU-dagger rule can compare them as it compares the two slopes.
+``"road-centre"``
+    x of the centre line (the mean of the two lines) at ``FAR_ROW`` and at ``NEAR_ROW``.
+``"near-vanishing-point-offset"``
+    The vanishing-point offset of two lines fitted to the near segments only (lower end at
+    or below ``NEAR_PART``), the road's direction just ahead of the car.
+
+A feature mode (:attr:`qdcnn.config.GroupingConfig.FEATURE_MODES`) names the two columns
+a 2-input classifier uses; :func:`mode_columns` gives their indices.
+
 References
 ----------
 .. [1] QDCNN paper, ``shared/paper/qdcnn-paper.tex``, Sec. II-A-3, II-C, III-A.
@@ -56,7 +77,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.config import LaneConfig
+from qdcnn.config import GroupingConfig, LaneConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.lanes import detect_segments
 
@@ -68,7 +89,17 @@ EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
     "angles": ("angle_left", "angle_right"),
     # x of the two lines' intersection relative to the width (x / (W - 1)), minus 0.5
     "vanishing-point-offset": ("vanishing_point_offset",),
+    # x of each line at the far row FAR_ROW, relative to the width, minus 0.5
+    "far-offsets": ("far_left", "far_right"),
+    # x of the centre line (mean of the two lines) at FAR_ROW and at NEAR_ROW, minus 0.5
+    "road-centre": ("centre_far", "centre_near"),
+    # the vanishing-point offset of lines fitted to the near segments only (NEAR_PART)
+    "near-vanishing-point-offset": ("near_vanishing_point_offset",),
 }
+#: far and near rows of "far-offsets" and "road-centre", relative to the height (y / (H - 1))
+FAR_ROW, NEAR_ROW = 0.5, 0.9
+#: "near-vanishing-point-offset" uses the segments whose lower end is at or below this row
+NEAR_PART = 0.7
 SLOPE_NAMES: tuple[str, str] = ("slope_left", "slope_right")
 Status = Literal["ok", "one-line", "no-lines"]
 _SPECTRAL_NEIGHBOURS = 10
@@ -120,6 +151,35 @@ def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
     """Names of the feature columns for ``extra_features`` (the two slopes first)."""
     _check_extras(extra_features)
     return SLOPE_NAMES + tuple(n for extra in extra_features for n in EXTRA_FEATURES[extra])
+
+
+def mode_columns(features: str, extra_features: Sequence[str] = ()) -> tuple[int, int]:
+    """Indices of a feature mode's two columns in the vector of ``extra_features``.
+
+    Parameters
+    ----------
+    features : str
+        A key of :attr:`qdcnn.config.GroupingConfig.FEATURE_MODES` (``"slopes"`` is the
+        paper's two slopes).
+    extra_features : sequence of str
+        The extras the feature vector was computed with.
+
+    Examples
+    --------
+    >>> mode_columns("far-offsets", ("angles", "far-offsets"))
+    (4, 5)
+    """
+    if features not in GroupingConfig.FEATURE_MODES:
+        allowed = ", ".join(map(repr, GroupingConfig.FEATURE_MODES))
+        raise ParameterError("features", features, f"one of {allowed}")
+    names = feature_names(extra_features)
+    wanted, needed = GroupingConfig.FEATURE_MODES[features]
+    missing = [n for n in wanted if n not in names]
+    if missing:
+        raise ParameterError(
+            "extra_features", tuple(extra_features), f"to include {needed} for {features!r}"
+        )
+    return names.index(wanted[0]), names.index(wanted[1])
 
 
 def fit_line(segments: NDArray[np.float64]) -> tuple[float, float] | None:
@@ -262,7 +322,7 @@ def group_segments(
             0.5 * (lines[0][0] + lines[1][0]),
             0.5 * (lines[0][1] + lines[1][1]),
         )
-    values = _feature_values(lines, extra_features, h, w)
+    values = _feature_values(lines, extra_features, h, w, seg, labels)
     return LaneFeatures(
         features=values,
         status=status,
@@ -427,11 +487,34 @@ def _one_line(segments: NDArray[np.float64], tolerance_px: float) -> tuple[float
     return line if rms < tolerance_px else None
 
 
+def _x_at(line: tuple[float, float] | None, row: float, h: int, w: int) -> float:
+    """x of ``line`` at relative row ``row``, relative to the width, minus 0.5 (NaN if none)."""
+    if line is None:
+        return float("nan")
+    return (line[0] * row * (h - 1) + line[1]) / max(w - 1, 1) - 0.5
+
+
+def _crossing_offset(
+    left: tuple[float, float] | None, right: tuple[float, float] | None, w: int
+) -> float:
+    """x of the two lines' intersection relative to the width, minus 0.5 (NaN if none)."""
+    if left is None or right is None or abs(left[0] - right[0]) <= 1e-9:
+        return float("nan")
+    y = (right[1] - left[1]) / (left[0] - right[0])
+    return (left[0] * y + left[1]) / max(w - 1, 1) - 0.5
+
+
 def _feature_values(
-    lines: list[tuple[float, float] | None], extra_features: Sequence[str], h: int, w: int
+    lines: list[tuple[float, float] | None],
+    extra_features: Sequence[str],
+    h: int,
+    w: int,
+    segments: NDArray[np.float64] | None = None,
+    labels: NDArray[np.int64] | None = None,
 ) -> NDArray[np.float64]:
     nan = float("nan")
     values = [line[0] if line is not None else nan for line in lines]
+    left, right = lines
     for extra in extra_features:
         if extra == "intercepts":
             values += [
@@ -440,11 +523,19 @@ def _feature_values(
             ]
         elif extra == "angles":
             values += [float(np.arctan(line[0])) if line is not None else nan for line in lines]
-        else:  # vanishing-point-offset
-            left, right = lines
-            offset = nan
-            if left is not None and right is not None and abs(left[0] - right[0]) > 1e-9:
-                y = (right[1] - left[1]) / (left[0] - right[0])
-                offset = (left[0] * y + left[1]) / max(w - 1, 1) - 0.5
-            values.append(offset)
+        elif extra == "vanishing-point-offset":
+            values.append(_crossing_offset(left, right, w))
+        elif extra == "far-offsets":
+            values += [_x_at(left, FAR_ROW, h, w), _x_at(right, FAR_ROW, h, w)]
+        elif extra == "road-centre":
+            values += [
+                0.5 * (_x_at(left, row, h, w) + _x_at(right, row, h, w))
+                for row in (FAR_ROW, NEAR_ROW)
+            ]
+        else:  # near-vanishing-point-offset
+            near_lines: list[tuple[float, float] | None] = [None, None]
+            if segments is not None and labels is not None and len(segments):
+                near = np.maximum(segments[:, 1], segments[:, 3]) >= NEAR_PART * (h - 1)
+                near_lines = [fit_line(segments[near & (labels == g)]) for g in (0, 1)]
+            values.append(_crossing_offset(near_lines[0], near_lines[1], w))
     return np.asarray(values, dtype=np.float64)

@@ -64,16 +64,17 @@ def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
 def smooth(grey: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArray[np.uint8]:
     """Median filter then Gaussian blur, repeated ``config.smoothing_iterations`` times.
 
-    Works on one grey channel with two ping-pong buffers (no allocation per iteration).
+    Works with two ping-pong buffers (no allocation per iteration); a colour frame is
+    filtered channel by channel (OpenCV's own handling of 3-channel input).
 
     Parameters
     ----------
-    grey : (H, W) uint8 array
+    grey : (H, W) or (H, W, 3) uint8 array
     config : LaneConfig
 
     Returns
     -------
-    (H, W) uint8 array
+    uint8 array of the same shape
         A new array; ``grey`` is not modified.
     """
     a = np.array(grey, dtype=np.uint8, copy=True, order="C")
@@ -136,6 +137,10 @@ def paper_roi(width: int = 640, height: int = 480) -> tuple[tuple[float, float],
 def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArray[np.uint8]:
     """Canny edges of the smoothed frame, kept only inside the ROI polygon.
 
+    With ``config.edge_channels == "rgb"`` the three colour channels are smoothed and
+    given to ``cv2.Canny`` together; it takes at each pixel the gradient of the channel
+    where its magnitude is largest, so an edge seen in any channel counts.
+
     Parameters
     ----------
     image : (H, W, 3) or (H, W) uint8 array
@@ -162,7 +167,9 @@ def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArr
     polygon = tuple((float(x), float(y)) for x, y in config.roi)
     rows, cols = _roi_window(shape, polygon, config.smoothing_margin)
     edges = np.zeros(shape, dtype=np.uint8)
-    window = grey[rows, cols]
+    # colour Canny (OpenCV): per pixel, the gradient of the channel where it is largest
+    source = image if config.edge_channels == "rgb" and image.ndim == 3 else grey
+    window = source[rows, cols]
     if window.size:
         window_edges = np.asarray(
             cv2.Canny(smooth(window, config), config.canny_low, config.canny_high), dtype=np.uint8
@@ -177,7 +184,9 @@ def segments_from_edges(
     """Probabilistic Hough segments of an edge map, as an ``(N, 4)`` array ``x1, y1, x2, y2``.
 
     Each segment is oriented so that ``y1 <= y2`` (top end first; ``x1 <= x2`` on ties),
-    which makes descriptors independent of the order OpenCV reports the ends in.
+    which makes descriptors independent of the order OpenCV reports the ends in. With
+    ``config.min_segment_angle > 0``, segments less steep than that (degrees from the
+    horizontal) are dropped.
     """
     found = cv2.HoughLinesP(
         edges,
@@ -192,6 +201,9 @@ def segments_from_edges(
     seg = found.reshape(-1, 4).astype(np.float64)
     flip = (seg[:, 1] > seg[:, 3]) | ((seg[:, 1] == seg[:, 3]) & (seg[:, 0] > seg[:, 2]))
     seg[flip] = seg[flip][:, [2, 3, 0, 1]]
+    if config.min_segment_angle > 0:
+        steep = np.degrees(np.arctan2(seg[:, 3] - seg[:, 1], np.abs(seg[:, 2] - seg[:, 0])))
+        seg = seg[steep >= config.min_segment_angle]
     return seg
 
 
