@@ -7,7 +7,12 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from qdcnn.models.augment import SHADOW_DARKNESS, augment_batch, shadow_masks  # noqa: E402
+from qdcnn.models.augment import (  # noqa: E402
+    SHADOW_DARKNESS,
+    augment_batch,
+    shadow_masks,
+    shift_columns,
+)
 
 
 def half_bright_batch(n: int) -> torch.Tensor:
@@ -56,3 +61,27 @@ def test_same_generator_seed_same_augmentation() -> None:
     a = augment_batch(x, y, torch.Generator().manual_seed(5))
     b = augment_batch(x, y, torch.Generator().manual_seed(5))
     assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
+
+
+def test_shift_columns_moves_frames_and_repeats_the_edge() -> None:
+    x = torch.arange(5.0).view(1, 1, 1, 5).repeat(3, 2, 2, 1)
+    out = shift_columns(x, torch.tensor([2, 0, -1]))
+    assert out[0, 1, 1].tolist() == [0, 0, 0, 1, 2]  # right by 2, column 0 repeated
+    assert torch.equal(out[1], x[1])
+    assert out[2, 0, 0].tolist() == [1, 2, 3, 4, 4]  # left by 1, last column repeated
+
+
+def test_shift_is_bounded_keeps_labels_and_is_off_by_default() -> None:
+    n, w = 64, 40
+    x = torch.zeros((n, 3, 4, w))
+    x[..., w // 2] = 200.0  # one bright column in the middle
+    labels = torch.arange(n) % 3
+    plain = augment_batch(x, labels, torch.Generator().manual_seed(7))
+    unshifted = augment_batch(x, labels, torch.Generator().manual_seed(7), max_shift=0.0)
+    assert torch.equal(plain[0], unshifted[0]) and torch.equal(plain[1], unshifted[1])
+    out, new = augment_batch(x, labels, torch.Generator().manual_seed(7), max_shift=0.1)
+    assert torch.equal(new, plain[1])  # same flips, labels untouched by shifts
+    column = out[:, 0, 0].argmax(dim=1)  # where the bright column went
+    offsets = (column - w // 2).abs()  # a flip moves the middle column by at most 1
+    assert int(offsets.max()) <= round(0.1 * w) + 1
+    assert int((offsets >= 2).sum()) > n // 4  # most frames did move

@@ -56,7 +56,7 @@ def data() -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def fitted(data: tuple[np.ndarray, np.ndarray]) -> CNNDirectionClassifier:
-    return small(epochs=4).fit(*data)
+    return small(epochs=4, lr_schedule="constant").fit(*data)  # 4 epochs: no annealing
 
 
 def test_training_lowers_the_loss_and_learns_the_lean(fitted: CNNDirectionClassifier) -> None:
@@ -150,6 +150,41 @@ def test_progress_bar_goes_to_stderr(
     assert capsys.readouterr().err == ""
 
 
+def test_flip_averaging_is_mirror_symmetric(fitted: CNNDirectionClassifier) -> None:
+    x, _ = line_frames(9, np.random.default_rng(5))
+    tta = clone(fitted).set_params(tta=True)
+    tta.model_, tta.device_ = fitted.model_, fitted.device_  # same trained network
+    proba = tta.predict_proba(x)
+    mirrored = tta.predict_proba(np.ascontiguousarray(x[:, :, ::-1]))
+    np.testing.assert_allclose(mirrored, proba[:, [2, 1, 0]], atol=1e-6)
+    plain, flipped = fitted.predict_proba(x), fitted.predict_proba(x[:, :, ::-1].copy())
+    np.testing.assert_allclose(proba, (plain + flipped[:, [2, 1, 0]]) / 2, atol=1e-6)
+
+
+def test_cosine_schedule_anneals_to_zero(data: tuple[np.ndarray, np.ndarray]) -> None:
+    cosine = small(epochs=3, patience=0, lr=0.002, lr_schedule="cosine").fit(*data)
+    rates = [h["lr"] for h in cosine.history_]
+    assert rates[0] < 0.002 and rates[1] < rates[0] and rates[2] == pytest.approx(0.0, abs=1e-12)
+    constant = small(epochs=2, patience=0, lr=0.002, lr_schedule="constant").fit(*data)
+    assert [h["lr"] for h in constant.history_] == [0.002, 0.002]
+
+
+def test_unweighted_smoothed_loss_learns_and_is_reported(
+    data: tuple[np.ndarray, np.ndarray],
+) -> None:
+    x, y = data
+    eps = 0.2
+    clf = small(epochs=4, class_weight=None, label_smoothing=eps, max_shift=0.05).fit(x, y)
+    test_x, test_y = line_frames(30, np.random.default_rng(1))
+    assert clf.score(test_x, test_y) >= 0.8
+    # the kept epoch's validation loss is the smoothed, unweighted cross-entropy of the
+    # last 15 % of the frames: -(1 - eps) log p_y - (eps / 3) sum_c log p_c
+    _, val = split_train_val(len(y), clf.val_fraction)
+    logp = np.log(clf.predict_proba(x[val]))
+    expected = np.mean(-(1 - eps) * logp[np.arange(len(val)), y[val]] - eps / 3 * logp.sum(1))
+    assert clf.history_[clf.best_epoch_ - 1]["val_loss"] == pytest.approx(expected, rel=1e-4)
+
+
 def test_contiguous_validation_split() -> None:
     train, val = split_train_val(100, 0.15)
     np.testing.assert_array_equal(train, np.arange(85))
@@ -158,6 +193,24 @@ def test_contiguous_validation_split() -> None:
     assert len(split_train_val(5, 0.0)[1]) == 0
     with pytest.raises(InputError, match="2 frames leave 1 for training; need at least 2"):
         split_train_val(2, 0.5)
+
+
+def test_validation_blocks_are_spread_and_fenced_by_gaps() -> None:
+    train, val = split_train_val(100, 0.2, blocks=4, gap=2)
+    blocks = np.split(val, np.flatnonzero(np.diff(val) > 1) + 1)
+    assert [b.tolist() for b in blocks] == [list(range(e - 5, e)) for e in (25, 50, 75, 100)]
+    gaps = {i for b in blocks for i in range(b[0] - 2, b[-1] + 3)} - set(val.tolist())
+    assert set(train.tolist()) == set(range(100)) - set(val.tolist()) - gaps
+    assert min(abs(int(t) - int(v)) for t in train for v in val) == 3
+    # a class present only in the middle of the recording is validated on
+    labels = np.ones(100, np.int64)
+    labels[40:50] = 0
+    assert 0 in labels[val] and 0 not in labels[split_train_val(100, 0.2)[1]]
+    # short inputs: one block when blocks would be shorter than 2 * gap, shorter gaps
+    train, val = split_train_val(60, 0.15, blocks=4, gap=5)
+    assert val.tolist() == list(range(51, 60)) and train.tolist() == list(range(46))
+    train, val = split_train_val(6, 0.15, blocks=4, gap=5)
+    assert val.tolist() == [5] and train.tolist() == [0, 1, 2, 3]
 
 
 def test_class_weights_are_balanced() -> None:
@@ -197,6 +250,17 @@ def test_parameter_errors() -> None:
         CNNDirectionClassifier("resnet50", batch_size=1)
     with pytest.raises(ParameterError, match="crop"):
         CNNDirectionClassifier(crop=(0.8, 0.2))
+    with pytest.raises(ParameterError) as err:
+        CNNDirectionClassifier(class_weight="auto")  # type: ignore[arg-type]
+    assert str(err.value) == "class_weight='auto' is invalid: 'balanced' or None"
+    with pytest.raises(ParameterError, match=r"label_smoothing=0\.5 is invalid"):
+        CNNDirectionClassifier(label_smoothing=0.5)
+    with pytest.raises(ParameterError, match="lr_schedule='step' is invalid"):
+        CNNDirectionClassifier(lr_schedule="step")  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match=r"max_shift=-0\.1 is invalid"):
+        CNNDirectionClassifier(max_shift=-0.1)
+    with pytest.raises(ParameterError, match="val_blocks=0 is invalid"):
+        CNNDirectionClassifier(val_blocks=0)
 
 
 def test_is_a_scikit_learn_estimator() -> None:
@@ -204,3 +268,15 @@ def test_is_a_scikit_learn_estimator() -> None:
     twin = clone(clf)
     assert twin.get_params() == clf.get_params()
     assert twin.get_params()["weights"] == "w.pth"
+
+
+def test_inference_fps_checks_its_arguments() -> None:
+    from qdcnn.models.training import inference_fps
+
+    fps = inference_fps("pilotnet", n=4, size=(40, 80), batch_size=2, num_threads=1, clock="cpu")
+    assert np.isfinite(fps) and fps > 0
+    with pytest.raises(ParameterError) as err:
+        inference_fps("pilotnet", n=4, size=(40, 80), clock="gpu")  # type: ignore[arg-type]
+    assert str(err.value) == "clock='gpu' is invalid: 'wall' or 'cpu'"
+    with pytest.raises(ParameterError, match="n=0 is invalid"):
+        inference_fps("pilotnet", n=0)

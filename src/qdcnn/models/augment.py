@@ -7,7 +7,10 @@ brightness and shadows are the usual additions for this simulator):
 - horizontal flip, which mirrors the road, so left and right labels swap;
 - brightness scaling of the whole frame (scaling RGB scales HSV value, keeping hue);
 - a synthetic shadow: a random quadrilateral spanning the frame top to bottom is
-  darkened, mimicking tree and pole shadows across the road.
+  darkened, mimicking tree and pole shadows across the road;
+- optionally, a small horizontal shift (edge columns repeated), the lateral offset
+  jitter of Bojarski et al.; labels are kept, so shifts should stay well below the
+  offset that would change the direction class.
 """
 
 from __future__ import annotations
@@ -44,8 +47,31 @@ def shadow_masks(n: int, height: int, width: int, generator: torch.Generator) ->
     return (x >= left) & (x <= right)
 
 
+def shift_columns(images: torch.Tensor, shifts: torch.Tensor) -> torch.Tensor:
+    """Move each frame ``shifts[i]`` pixels right (negative: left), repeating the edge column.
+
+    Parameters
+    ----------
+    images : (B, C, H, W) tensor
+    shifts : (B,) int64 tensor
+
+    Returns
+    -------
+    (B, C, H, W) tensor
+        ``out[i, ..., x] = images[i, ..., clip(x - shifts[i], 0, W - 1)]``.
+    """
+    n, c, h, w = images.shape
+    cols = torch.arange(w, device=images.device).view(1, w) - shifts.to(images.device).view(n, 1)
+    index = cols.clamp_(0, w - 1).view(n, 1, 1, w).expand(n, c, h, w)
+    return torch.gather(images, 3, index)
+
+
 def augment_batch(
-    images: torch.Tensor, labels: torch.Tensor, generator: torch.Generator
+    images: torch.Tensor,
+    labels: torch.Tensor,
+    generator: torch.Generator,
+    *,
+    max_shift: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Augment a batch of frames and their direction labels.
 
@@ -57,6 +83,9 @@ def augment_batch(
         0 = left, 1 = straight, 2 = right.
     generator : torch.Generator
         CPU generator all random choices are drawn from (seeded by the caller).
+    max_shift : float
+        Largest horizontal shift as a fraction of the width (0: no shift, and no
+        random numbers drawn for it).
 
     Returns
     -------
@@ -81,4 +110,7 @@ def augment_batch(
     masks = shadow_masks(n, h, w, generator) & shaded.view(n, 1, 1)
     factor = torch.where(masks, darkness.view(n, 1, 1), torch.ones(()))
     x = x * factor.to(device).unsqueeze(1)
+    if max_shift > 0:
+        shifts = torch.round(_uniform(n, -max_shift, max_shift, generator) * w).long()
+        x = shift_columns(x, shifts)
     return x.clamp_(0.0, 255.0), labels
