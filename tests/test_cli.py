@@ -274,3 +274,61 @@ def test_evaluate_rejects_bad_specs_and_single_class_data(tmp_path: Path) -> Non
     )
     assert res.exit_code == 2
     assert "all 12 labels are 'straight'" in res.stderr
+
+
+def test_evaluate_rejects_unknown_feature_modes_and_thread_counts() -> None:
+    res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--features", "curves"])
+    assert res.exit_code == 2
+    assert "grouping.features='curves' is invalid: one of 'slopes', " in res.stderr
+    res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--threads", "0"])
+    assert res.exit_code == 2 and "threads=0 is invalid: a positive integer" in res.stderr
+
+
+def test_a_model_trained_on_a_feature_mode_detects_with_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    model = tmp_path / "model.pkl"
+    res = runner.invoke(
+        app,
+        [
+            "train-direction",
+            "--data",
+            "synthetic:track2:60",
+            "--method",
+            "kmeans-uu",
+            "--features",
+            "road-centre",
+            "--out",
+            str(model),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.stderr
+    assert json.loads(res.stdout)["n"] == 60
+    res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    frames = tmp_path / "udacity" / "IMG"
+    res = runner.invoke(
+        app,
+        ["detect-lanes", str(frames), "--out", str(tmp_path / "lanes"), "--model", str(model)],
+        catch_exceptions=False,
+    )
+    assert res.exit_code == 0, res.stderr
+    res = runner.invoke(
+        app,
+        [
+            "detect-lanes",
+            str(frames),
+            "--out",
+            str(tmp_path / "l2"),
+            "--model",
+            str(model),
+            "--json",
+        ],
+    )
+    *rows, summary = [json.loads(line) for line in res.stdout.splitlines()]
+    assert summary["summary"] and summary["n_images"] == 3 and len(rows) == 3
+    for row in rows:
+        assert len(row["features"]) == 4  # two slopes, then the two road-centre columns
+        assert row["direction"] in ("left", "straight", "right")

@@ -285,14 +285,24 @@ def train_shadows_cmd(
     raise typer.Exit(1 if failures else 0)
 
 
-def _evaluation_config(lanes: str, seed: int) -> PipelineConfig:
-    from qdcnn.config import LaneConfig
+def _evaluation_config(lanes: str, seed: int, features: str = "slopes") -> PipelineConfig:
+    from qdcnn.config import GroupingConfig, LaneConfig
     from qdcnn.errors import ParameterError
 
     if lanes not in ("udacity", "paper"):
         raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
     lane_cfg = LaneConfig.udacity() if lanes == "udacity" else LaneConfig()
-    return replace(PipelineConfig(seed=seed), lanes=lane_cfg)
+    grouping = GroupingConfig.for_features(features)
+    return replace(PipelineConfig(seed=seed), lanes=lane_cfg, grouping=grouping)
+
+
+FeaturesOpt = Annotated[
+    str,
+    typer.Option(
+        help="Two classifier inputs: slopes (the paper) | far-offsets | road-centre"
+        " | vanishing-points."
+    ),
+]
 
 
 @app.command("evaluate")
@@ -314,10 +324,15 @@ def evaluate_cmd(
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of every random choice.")] = 0,
     cache: Annotated[bool, typer.Option(help="Reuse cached lane features.")] = True,
+    features: FeaturesOpt = "slopes",
+    threads: Annotated[
+        int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     from qdcnn.data.labels import check_labels_usable
+    from qdcnn.errors import ParameterError
     from qdcnn.experiments.datasets import load_frameset
     from qdcnn.experiments.evaluate import (
         ALL_METHODS,
@@ -331,7 +346,9 @@ def evaluate_cmd(
 
     try:
         check_method(method)
-        cfg = _evaluation_config(lanes, seed)
+        if threads is not None and threads < 1:
+            raise ParameterError("threads", threads, "a positive integer")
+        cfg = _evaluation_config(lanes, seed, features)
         frames = load_frameset(data, seed=seed)
         methods = list(ALL_METHODS if method == "all" else [method])
         if method == "all" and not _has_torch():
@@ -387,6 +404,7 @@ def evaluate_cmd(
                 weights=weights,
                 seed=seed,
                 progress=not as_json,
+                num_threads=threads,
             )
             failures.extend(res.extra.pop("failures", []))
             results.append(res)
@@ -451,6 +469,7 @@ def train_direction_cmd(
     method: Annotated[str, typer.Option(help="One of the six quantum methods.")] = "image-split-uu",
     lanes: Annotated[str, typer.Option(help="udacity (1 smoothing pass) | paper (30)")] = "udacity",
     seed: Annotated[int, typer.Option(help="Seed.")] = 0,
+    features: FeaturesOpt = "slopes",
     as_json: JsonOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it."""
@@ -463,7 +482,7 @@ def train_direction_cmd(
     try:
         if method not in QUANTUM_METHODS:
             raise ParameterError("method", method, "one of " + ", ".join(QUANTUM_METHODS))
-        cfg = _evaluation_config(lanes, seed)
+        cfg = _evaluation_config(lanes, seed, features)
         frames = load_frameset(data, seed=seed)
         labels = frames.labels(cfg.labels)
         grouping = QUANTUM_METHODS[method][0]
