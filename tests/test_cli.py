@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from qdcnn.cli import app
 from qdcnn.data import images as image_io
 from qdcnn.data.images import read_mask, write_image, write_mask
+from qdcnn.experiments.direction_model import DirectionModel
 
 runner = CliRunner()
 
@@ -282,6 +283,8 @@ def test_evaluate_rejects_unknown_feature_modes_and_thread_counts() -> None:
     assert "grouping.features='curves' is invalid: one of 'slopes', " in res.stderr
     res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--threads", "0"])
     assert res.exit_code == 2 and "threads=0 is invalid: a positive integer" in res.stderr
+    res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--edges", "hsv"])
+    assert res.exit_code == 2 and "edges='hsv' is invalid: 'grey' (the paper)" in res.stderr
 
 
 def test_a_model_trained_on_a_feature_mode_detects_with_it(
@@ -299,6 +302,9 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
             "kmeans-uu",
             "--features",
             "road-centre",
+            "--edges",
+            "rgb",
+            "--no-shadow-removal",
             "--out",
             str(model),
             "--json",
@@ -306,6 +312,8 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
     )
     assert res.exit_code == 0, res.stderr
     assert json.loads(res.stdout)["n"] == 60
+    lanes = DirectionModel.load(model).config.lanes
+    assert lanes.edge_channels == "rgb" and not lanes.remove_shadows
     res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(tmp_path)])
     assert res.exit_code == 0, res.stderr
     frames = tmp_path / "udacity" / "IMG"

@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import typer
@@ -285,13 +285,23 @@ def train_shadows_cmd(
     raise typer.Exit(1 if failures else 0)
 
 
-def _evaluation_config(lanes: str, seed: int, features: str = "slopes") -> PipelineConfig:
+def _evaluation_config(
+    lanes: str,
+    seed: int,
+    features: str = "slopes",
+    edges: str = "grey",
+    shadow_removal: bool = True,
+) -> PipelineConfig:
     from qdcnn.config import GroupingConfig, LaneConfig
     from qdcnn.errors import ParameterError
 
     if lanes not in ("udacity", "paper"):
         raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
     lane_cfg = LaneConfig.udacity() if lanes == "udacity" else LaneConfig()
+    if edges not in ("grey", "rgb"):
+        raise ParameterError("edges", edges, "'grey' (the paper) or 'rgb' (colour Canny)")
+    channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
+    lane_cfg = replace(lane_cfg, edge_channels=channels, remove_shadows=shadow_removal)
     grouping = GroupingConfig.for_features(features)
     return replace(PipelineConfig(seed=seed), lanes=lane_cfg, grouping=grouping)
 
@@ -302,6 +312,12 @@ FeaturesOpt = Annotated[
         help="Two classifier inputs: slopes (the paper) | far-offsets | road-centre"
         " | vanishing-points."
     ),
+]
+EdgesOpt = Annotated[
+    str, typer.Option(help="What Canny sees: grey (the paper) | rgb (colour Canny).")
+]
+ShadowRemovalOpt = Annotated[
+    bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
 ]
 
 
@@ -325,6 +341,8 @@ def evaluate_cmd(
     seed: Annotated[int, typer.Option(help="Seed of every random choice.")] = 0,
     cache: Annotated[bool, typer.Option(help="Reuse cached lane features.")] = True,
     features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
     threads: Annotated[
         int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
     ] = None,
@@ -348,7 +366,7 @@ def evaluate_cmd(
         check_method(method)
         if threads is not None and threads < 1:
             raise ParameterError("threads", threads, "a positive integer")
-        cfg = _evaluation_config(lanes, seed, features)
+        cfg = _evaluation_config(lanes, seed, features, edges, shadow_removal)
         frames = load_frameset(data, seed=seed)
         methods = list(ALL_METHODS if method == "all" else [method])
         if method == "all" and not _has_torch():
@@ -470,6 +488,8 @@ def train_direction_cmd(
     lanes: Annotated[str, typer.Option(help="udacity (1 smoothing pass) | paper (30)")] = "udacity",
     seed: Annotated[int, typer.Option(help="Seed.")] = 0,
     features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
     as_json: JsonOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it."""
@@ -482,7 +502,7 @@ def train_direction_cmd(
     try:
         if method not in QUANTUM_METHODS:
             raise ParameterError("method", method, "one of " + ", ".join(QUANTUM_METHODS))
-        cfg = _evaluation_config(lanes, seed, features)
+        cfg = _evaluation_config(lanes, seed, features, edges, shadow_removal)
         frames = load_frameset(data, seed=seed)
         labels = frames.labels(cfg.labels)
         grouping = QUANTUM_METHODS[method][0]
