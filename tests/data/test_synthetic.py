@@ -125,9 +125,11 @@ def test_lane_lines_are_painted_on_the_road() -> None:
     # the two boundaries enclose the straight road and meet towards the horizon
     left, right = s.lane_lines
     gap_near = np.interp(130, right[:, 1][::-1], right[:, 0][::-1]) - np.interp(
-        130, left[:, 1][::-1], left[:, 0][::-1])
+        130, left[:, 1][::-1], left[:, 0][::-1]
+    )
     gap_far = np.interp(75, right[:, 1][::-1], right[:, 0][::-1]) - np.interp(
-        75, left[:, 1][::-1], left[:, 0][::-1])
+        75, left[:, 1][::-1], left[:, 0][::-1]
+    )
     assert gap_near > 3 * gap_far > 0
 
 
@@ -199,8 +201,9 @@ def test_generate_scenes_balances_classes_and_scenes_regenerate() -> None:
     assert sorted(dirs[:3]) == [0, 1, 2]
     assert dirs[3:6] == dirs[:3] and dirs[6:] == dirs[:3]
     assert len({s.seed for s in scenes}) == 9
-    again = generate_scene("track1", seed=scenes[4].seed, width=96, height=48,
-                           direction=scenes[4].direction)
+    again = generate_scene(
+        "track1", seed=scenes[4].seed, width=96, height=48, direction=scenes[4].direction
+    )
     assert _same(again, scenes[4])
     assert generate_scenes("track1", 0) == []
 
@@ -264,16 +267,22 @@ def test_drive_is_deterministic() -> None:
 @pytest.mark.parametrize(
     ("call", "message"),
     [
-        (lambda: generate_scene("track3"),
-         "preset='track3' is invalid: one of track1, track2, rain"),
+        (
+            lambda: generate_scene("track3"),
+            "preset='track3' is invalid: one of track1, track2, rain",
+        ),
         (lambda: generate_scene(width=0), "width=0 is invalid: between 16 and 8192 pixels"),
         (lambda: generate_scene(height=2.5), "height=2.5 is invalid: an integer number of pixels"),
-        (lambda: generate_scene(direction=3),
-         "direction=3 is invalid: 0 (left), 1 (straight), 2 (right) or None"),
+        (
+            lambda: generate_scene(direction=3),
+            "direction=3 is invalid: 0 (left), 1 (straight), 2 (right) or None",
+        ),
         (lambda: generate_scene(seed=-1), "seed=-1 is invalid: a non-negative integer"),
         (lambda: generate_scenes("track1", -2), "n=-2 is invalid: a non-negative integer"),
-        (lambda: generate_drive("track1", 5, fps=0),
-         "fps=0 is invalid: a frame rate between 0.5 and 1000"),
+        (
+            lambda: generate_drive("track1", 5, fps=0),
+            "fps=0 is invalid: a frame rate between 0.5 and 1000",
+        ),
     ],
 )
 def test_bad_parameters_give_one_line_errors(call: object, message: str) -> None:

@@ -92,7 +92,10 @@ def test_shadow_set_round_trips_exactly(tmp_path: Path) -> None:
     scenes = generate_scenes("track2", 3, seed=4, width=96, height=48)
     root = write_shadow_set(scenes, tmp_path / "shadows")
     assert sorted(p.name for p in (root / "images").iterdir()) == [
-        "scene_000000.png", "scene_000001.png", "scene_000002.png"]
+        "scene_000000.png",
+        "scene_000001.png",
+        "scene_000002.png",
+    ]
     for i, scene in enumerate(scenes):
         stem = f"scene_{i:06d}.png"
         assert np.array_equal(read_image(root / "images" / stem), scene.image)

@@ -183,13 +183,32 @@ def generate_scene(
         steering=steering,
         curvature=curvature,
     )
-    return _scene(take, state, preset, seed, width, height, np.random.default_rng(frame_ss),
-                  style.hood if hood is None else hood, None, direction)
+    return _scene(
+        take,
+        state,
+        preset,
+        seed,
+        width,
+        height,
+        np.random.default_rng(frame_ss),
+        style.hood if hood is None else hood,
+        None,
+        direction,
+    )
 
 
-def _scene(take: Take, state: FrameState, preset: str, seed: int, width: int, height: int,
-           rng: np.random.Generator, hood: bool, frame: int | None,
-           direction: int | None = None) -> RoadScene:
+def _scene(
+    take: Take,
+    state: FrameState,
+    preset: str,
+    seed: int,
+    width: int,
+    height: int,
+    rng: np.random.Generator,
+    hood: bool,
+    frame: int | None,
+    direction: int | None = None,
+) -> RoadScene:
     out = render(take, state, width, height, rng, hood)
     return RoadScene(
         image=out.image,
@@ -230,13 +249,22 @@ def generate_scenes(
     scenes = []
     for i in range(int(n)):
         scene_seed = int(np.random.SeedSequence([seed, i]).generate_state(1)[0])
-        scenes.append(generate_scene(preset, seed=scene_seed, width=width, height=height,
-                                     direction=int(order[i % 3]), hood=hood))
+        scenes.append(
+            generate_scene(
+                preset,
+                seed=scene_seed,
+                width=width,
+                height=height,
+                direction=int(order[i % 3]),
+                hood=hood,
+            )
+        )
     return scenes
 
 
-def drive_curvature(rng: np.random.Generator, style: Style, frames: int,
-                    min_frames: int = 25) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
+def drive_curvature(
+    rng: np.random.Generator, style: Style, frames: int, min_frames: int = 25
+) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
     """Per-frame curvature of a drive: straight runs and bends joined by smooth ramps.
 
     Returns the curvature (1/m) of each frame and the segment kind of each frame
@@ -257,8 +285,9 @@ def drive_curvature(rng: np.random.Generator, style: Style, frames: int,
         ramp = int(rng.integers(5, 11) + 8 * jump) if t else 0
         hold = int(rng.integers(min_frames, 2 * min_frames + 10))
         r = np.arange(1, ramp + 1) / (ramp + 1)
-        seg = np.concatenate([level + (target - level) * (0.5 - 0.5 * np.cos(np.pi * r)),
-                              np.full(hold, target)])
+        seg = np.concatenate(
+            [level + (target - level) * (0.5 - 0.5 * np.cos(np.pi * r)), np.full(hold, target)]
+        )
         curv[t : t + seg.size] = seg[: frames - t]
         kinds[t : t + seg.size] = kind
         t += seg.size
@@ -343,6 +372,5 @@ def generate_drive(
             steering=steer,
             curvature=k,
         )
-        scenes.append(_scene(take, state, preset, seed, width, height, frame_rngs[i],
-                             use_hood, i))
+        scenes.append(_scene(take, state, preset, seed, width, height, frame_rngs[i], use_hood, i))
     return scenes

@@ -103,11 +103,13 @@ def _ground_textures(kind: str) -> tuple[F32, ...]:
 def _screen_noise(seed: int, beta: float, width: int, height: int, scale: float) -> F32:
     """Read-only noise in image space: ``scale`` texels per pixel of a 320-wide frame."""
     k = np.float32(scale * 320 / width)
-    gx, gy = np.meshgrid(np.arange(width, dtype=np.float32) * k,
-                         np.arange(height, dtype=np.float32) * k)
+    gx, gy = np.meshgrid(
+        np.arange(width, dtype=np.float32) * k, np.arange(height, dtype=np.float32) * k
+    )
     tile = _noise_tile(seed, beta).astype(np.float32)
-    out = np.asarray(cv2.remap(tile, gx, gy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP),
-                     dtype=np.float32)
+    out = np.asarray(
+        cv2.remap(tile, gx, gy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP), dtype=np.float32
+    )
     out.setflags(write=False)
     return out
 
@@ -139,8 +141,9 @@ def _sample(levels: tuple[F32, ...], u: F32, v: F32, lod: FloatArray) -> F32:
             continue
         a, b = int(rows[0]), int(rows[-1]) + 1
         scale = np.float32(levels[k].shape[0] / levels[0].shape[0])
-        sampled = cv2.remap(levels[k], u[a:b] * scale, v[a:b] * scale, cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_WRAP)
+        sampled = cv2.remap(
+            levels[k], u[a:b] * scale, v[a:b] * scale, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP
+        )
         wk = w[a:b, None].astype(np.float32)
         for c, plane in enumerate(cv2.split(sampled) if channels > 1 else [sampled]):
             out[c, a:b] += plane * wk
@@ -164,8 +167,9 @@ class _View:
         c, s = math.cos(self.heading), math.sin(self.heading)
         return dx * c - dz * s, dx * s + dz * c
 
-    def project(self, x_cam: FloatArray, z_cam: FloatArray,
-                above: float | FloatArray = 0.0) -> FloatArray:
+    def project(
+        self, x_cam: FloatArray, z_cam: FloatArray, above: float | FloatArray = 0.0
+    ) -> FloatArray:
         return np.stack([self.cam.column(x_cam, z_cam), self.cam.row(z_cam, above)], axis=-1)
 
 
@@ -174,8 +178,12 @@ def _fixed(points: FloatArray, limit: float) -> NDArray[np.int32]:
     return np.round(np.clip(points, -limit, limit) * ONE).astype(np.int32)
 
 
-def _fill(canvas: NDArray[np.generic], polys: Sequence[FloatArray] | FloatArray,
-          value: float | tuple[float, ...], aa: bool = True) -> None:
+def _fill(
+    canvas: NDArray[np.generic],
+    polys: Sequence[FloatArray] | FloatArray,
+    value: float | tuple[float, ...],
+    aa: bool = True,
+) -> None:
     """Fill polygons (a list of ``(k, 2)`` arrays or one ``(n, k, 2)`` array) in pixels.
 
     One cv2 call fills them with the even-odd rule (an overlap becomes a hole): use this
@@ -194,8 +202,12 @@ def _fill(canvas: NDArray[np.generic], polys: Sequence[FloatArray] | FloatArray,
         cv2.fillPoly(canvas, fixed, value, cv2.LINE_AA if aa else cv2.LINE_8, SHIFT)
 
 
-def _fill_each(canvas: NDArray[np.generic], polys: Sequence[FloatArray],
-               values: Sequence[float] | float, aa: bool = True) -> None:
+def _fill_each(
+    canvas: NDArray[np.generic],
+    polys: Sequence[FloatArray],
+    values: Sequence[float] | float,
+    aa: bool = True,
+) -> None:
     """Fill polygons one at a time, in order (later ones paint over earlier ones)."""
     limit = 8.0 * max(canvas.shape[:2])
     vals = [values] * len(polys) if isinstance(values, float | int) else values
@@ -205,8 +217,9 @@ def _fill_each(canvas: NDArray[np.generic], polys: Sequence[FloatArray],
             cv2.fillPoly(canvas, [_fixed(p, limit)], v, line, SHIFT)
 
 
-def _coverage(shape: tuple[int, int], polys: Sequence[FloatArray] | FloatArray,
-              overlapping: bool = False) -> F32:
+def _coverage(
+    shape: tuple[int, int], polys: Sequence[FloatArray] | FloatArray, overlapping: bool = False
+) -> F32:
     canvas = np.zeros(shape, np.uint8)
     if overlapping:
         _fill_each(canvas, list(polys), 255)
@@ -256,8 +269,9 @@ def _strip(view: _View, line: _Centreline, d_in: float, d_out: float) -> FloatAr
     return np.concatenate([_curve(view, line, d_in), _curve(view, line, d_out)[::-1]])
 
 
-def _quads(view: _View, take: Take, s_a: FloatArray, length: float, d_in: float,
-           d_out: float) -> FloatArray:
+def _quads(
+    view: _View, take: Take, s_a: FloatArray, length: float, d_in: float, d_out: float
+) -> FloatArray:
     """Image quads ``(n, 4, 2)`` of road-aligned patches ``[s_a, s_a + length] x [d_in, d_out]``."""
     s = np.stack([s_a, s_a + length, s_a + length, s_a], 1)
     d = np.array([d_in, d_in, d_out, d_out])[None, :]
@@ -286,8 +300,10 @@ def _ground_polys(view: _View, polys: PolySet) -> list[tuple[int, FloatArray]]:
     show = (kept >= 3) & (zmin <= view.z_vis) & (umax > -2) & (umin < view.cam.width + 1)
     pieces = np.split(uv, starts[1:])
     masks = np.split(keep, starts[1:])
-    return [(int(i), pieces[i] if kept[i] == sizes[i] else pieces[i][masks[i]])
-            for i in np.flatnonzero(show)]
+    return [
+        (int(i), pieces[i] if kept[i] == sizes[i] else pieces[i][masks[i]])
+        for i in np.flatnonzero(show)
+    ]
 
 
 # ----------------------------------------------------------------------------- rendering
@@ -319,8 +335,9 @@ def _soft(canvas: F32, sigma_rows: FloatArray, top: int) -> F32:
     scale = max(1.0, canvas.shape[1] / 320)
     levels = (0.5 * scale, 1.5 * scale, 4.5 * scale)
     blurred = [cv2.GaussianBlur(canvas, (0, 0), sg) for sg in levels]
-    t = np.interp(np.log(np.clip(sigma_rows, levels[0], levels[-1])), np.log(levels),
-                  np.arange(len(levels)))
+    t = np.interp(
+        np.log(np.clip(sigma_rows, levels[0], levels[-1])), np.log(levels), np.arange(len(levels))
+    )
     out = np.zeros_like(canvas)
     for k, b in enumerate(blurred):
         w = np.clip(1.0 - np.abs(t - k), 0.0, 1.0).astype(np.float32)
@@ -328,8 +345,9 @@ def _soft(canvas: F32, sigma_rows: FloatArray, top: int) -> F32:
     return out
 
 
-def render(take: Take, state: FrameState, width: int, height: int,
-           rng: np.random.Generator, hood: bool) -> Frame:
+def render(
+    take: Take, state: FrameState, width: int, height: int, rng: np.random.Generator, hood: bool
+) -> Frame:
     """Render the frame seen from ``state`` in ``take`` at ``width`` x ``height`` pixels."""
     style = take.style
     route = take.route
@@ -346,8 +364,9 @@ def render(take: Take, state: FrameState, width: int, height: int,
     zr = np.interp(np.arange(top, height, dtype=np.float64), rows_tab, z_tab)
     ox, oz = take.texture_offset
     c, s = math.cos(view.heading), math.sin(view.heading)
-    k = (np.arange(width, dtype=np.float32) - np.float32(cam.cx))[None, :] * (
-        zr / cam.fx).astype(np.float32)[:, None]
+    k = (np.arange(width, dtype=np.float32) - np.float32(cam.cx))[None, :] * (zr / cam.fx).astype(
+        np.float32
+    )[:, None]
     zcol = zr.astype(np.float32)[:, None]
     footprint = np.sqrt(zr / cam.fx * zr**2 / (cam.fy * CAMERA_HEIGHT))
 
@@ -394,8 +413,9 @@ def render(take: Take, state: FrameState, width: int, height: int,
             edge_polys["a"].append(_quads(view, take, on, 1.0, side * half, side * (half + 1.3)))
         else:  # sidewalk: raised curb, then paving
             edge_polys["b"].append(_quads(view, take, on, 1.0, side * half, side * (half + 0.25)))
-            edge_polys["c"].append(_quads(view, take, on, 1.0, side * (half + 0.25),
-                                          side * (half + 3.2)))
+            edge_polys["c"].append(
+                _quads(view, take, on, 1.0, side * (half + 0.25), side * (half + 3.2))
+            )
     grit = 1.0 + 0.12 * fine_terr
     for key, colour in EDGE_COLOURS[style.edge_kind].items():
         if edge_polys[key]:
@@ -403,8 +423,9 @@ def render(take: Take, state: FrameState, width: int, height: int,
             _blend(ground, _rgb(colour) * grit, cov)
 
     if style.name == "track2":  # darker tyre tracks along the road
-        streak = _coverage(shape, [_strip(view, centre, d - 0.3, d + 0.3)
-                                   for d in (-0.85, 0.85)], True)
+        streak = _coverage(
+            shape, [_strip(view, centre, d - 0.3, d + 0.3) for d in (-0.85, 0.85)], True
+        )
         streak = cv2.GaussianBlur(streak, (0, 0), max(0.6, width / 320))[top:]
         ground *= 1.0 - 0.16 * streak * np.clip(0.8 + 0.4 * mid_road, 0.4, 1.2)
     if len(sc.bushes):
@@ -417,8 +438,7 @@ def render(take: Take, state: FrameState, width: int, height: int,
     line_d = half - take.line_inset - take.line_width / 2
     lw2 = take.line_width / 2
     lines = [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
-    marks: list[FloatArray] = [_strip(view, centre, d - lw2, d + lw2)
-                               for d in (-line_d, line_d)]
+    marks: list[FloatArray] = [_strip(view, centre, d - lw2, d + lw2) for d in (-line_d, line_d)]
     if take.centre_dash:
         dash = np.arange(math.floor(state.s / 9.0) * 9.0, s_hi, 9.0)
         marks += list(_quads(view, take, dash, 3.0, -lw2, lw2))
@@ -430,21 +450,22 @@ def render(take: Take, state: FrameState, width: int, height: int,
     if style.wet > 0:
         refl = style.wet * road_cov[top:] * np.clip(0.85 + 0.3 * mid_road, 0.6, 1.1)
         if len(sc.puddles):
-            puddle = _coverage(shape, [p for _, p in _ground_polys(view, sc.puddles)],
-                               True)[top:]
+            puddle = _coverage(shape, [p for _, p in _ground_polys(view, sc.puddles)], True)[top:]
             refl = np.maximum(refl, 0.42 * puddle * np.clip(0.9 + 0.5 * fine_road, 0.6, 1.1))
         refl_col = _rgb(horizon) * np.clip(0.85 + 0.6 * mid_road, 0.6, 1.1)
         _blend(ground, refl_col, refl)
     # --- cast shadows: where shadows overlap the darkest wins; edges blurred (penumbra)
     sh_alpha = np.zeros(shape, np.float32)
     if take.sun_out and len(sc.shadows):
-        projected = sorted(_ground_polys(view, sc.shadows),
-                           key=lambda ip: sc.shadows.values[ip[0]])
+        projected = sorted(_ground_polys(view, sc.shadows), key=lambda ip: sc.shadows.values[ip[0]])
         if projected:
             dark = np.zeros(shape, np.uint8)  # darkness of the covering shadow, 0 = lit
-            _fill_each(dark, [pts for _, pts in projected],
-                       [max(1, round(255 * sc.shadows.values[i])) for i, _ in projected],
-                       aa=False)
+            _fill_each(
+                dark,
+                [pts for _, pts in projected],
+                [max(1, round(255 * sc.shadows.values[i])) for i, _ in projected],
+                aa=False,
+            )
             # penumbra: a fixed width on the ground, so wider in pixels near the camera
             sigma_rows = style.penumbra * cam.fx / zr
             sh_alpha = _soft((dark > 0).astype(np.float32), sigma_rows, top)
@@ -493,8 +514,9 @@ def render(take: Take, state: FrameState, width: int, height: int,
     return Frame(image, shadow_mask, road_mask, lane_lines)
 
 
-def _visible(points: FloatArray, width: int, height: int, top: int,
-             hood_cov: F32) -> NDArray[np.float64]:
+def _visible(
+    points: FloatArray, width: int, height: int, top: int, hood_cov: F32
+) -> NDArray[np.float64]:
     """Points of a projected marking inside the frame, on visible ground, not under the hood."""
     if points.size == 0:
         return np.zeros((0, 2))
@@ -512,8 +534,7 @@ def _visible(points: FloatArray, width: int, height: int, top: int,
     return np.asarray(pts, dtype=np.float64)
 
 
-def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int,
-         height: int) -> F32:
+def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int, height: int) -> F32:
     """Rows ``[0, height)``: sky gradient, distant skyline and tree line (they pan with the
     heading)."""
     style = take.style
@@ -534,7 +555,8 @@ def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int,
         ridge = take.skyline[(idx // 48) * 48] * 1.6
     ridge_row = cam.horizon - cam.fy * np.tan(ridge)
     tree_row = cam.horizon - cam.fy * np.tan(
-        take.treeline[idx] * (1.5 if style.background == "lake" else 1.0))
+        take.treeline[idx] * (1.5 if style.background == "lake" else 1.0)
+    )
     rows = np.arange(height, dtype=np.float32)[:, None]
     speck = _screen_noise(18, 1.0, width, full_height, 1.0)[:height]
     ridge_col, tree_col = {
@@ -544,16 +566,25 @@ def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int,
     }[style.background]
     fade = 0.45 if style.rain else 0.3
     ridge_shade = _rgb(ridge_col) * (1.0 + 0.12 * speck)
-    _blend(img, ridge_shade + (_rgb(hor_c) - ridge_shade) * fade,
-           (rows >= ridge_row[None, :]).astype(np.float32))
+    _blend(
+        img,
+        ridge_shade + (_rgb(hor_c) - ridge_shade) * fade,
+        (rows >= ridge_row[None, :]).astype(np.float32),
+    )
     tree_shade = _rgb(tree_col) * (1.0 + 0.3 * speck)
-    _blend(img, tree_shade + (_rgb(hor_c) - tree_shade) * (0.5 if style.rain else 0.15),
-           ((rows >= tree_row[None, :]) & (rows < cam.horizon + 1.0)).astype(np.float32))
+    _blend(
+        img,
+        tree_shade + (_rgb(hor_c) - tree_shade) * (0.5 if style.rain else 0.15),
+        ((rows >= tree_row[None, :]) & (rows < cam.horizon + 1.0)).astype(np.float32),
+    )
     # below the horizon but above the visible ground (beyond a crest): distant land
     land = np.mean(np.asarray(style.terrain, np.float32), axis=0) * take.tint.astype(np.float32)
     land = land + (hor_c - land) * np.float32(0.45 if style.rain else 0.3)
-    _blend(img, _rgb(land) * (1.0 + 0.1 * speck),
-           np.broadcast_to(rows >= cam.horizon + 1.0, (height, width)).astype(np.float32))
+    _blend(
+        img,
+        _rgb(land) * (1.0 + 0.1 * speck),
+        np.broadcast_to(rows >= cam.horizon + 1.0, (height, width)).astype(np.float32),
+    )
     return img
 
 
@@ -583,21 +614,32 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
         xc, zc = view.to_camera(t["x"], t["z"])
         zs = np.maximum(zc, MIN_Z)
         r = t["radius"]
-        ok = (zc > MIN_Z) & (zc < far) & (
-            np.abs(xc) - 1.7 * r < (cam.cx + 2) * zs / cam.fx)
+        ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - 1.7 * r < (cam.cx + 2) * zs / cam.fx)
         i = np.flatnonzero(ok)
         if i.size:
             x, z = xc[i], zc[i]
             w2 = t["trunk_w"][i] / 2
             ub_l, ub_r = cam.column(x - w2, z), cam.column(x + w2, z)
             vb, vt = cam.row(z), cam.row(z, t["trunk_top"][i])
-            trunk = np.stack([np.stack([ub_l, vb], 1), np.stack([ub_r, vb], 1),
-                              np.stack([ub_r, vt], 1), np.stack([ub_l, vt], 1)], 1)
+            trunk = np.stack(
+                [
+                    np.stack([ub_l, vb], 1),
+                    np.stack([ub_r, vb], 1),
+                    np.stack([ub_r, vt], 1),
+                    np.stack([ub_l, vt], 1),
+                ],
+                1,
+            )
             outline = sc.tree_outlines[i]
             uc, vc = cam.column(x, z), cam.row(z, t["crown"][i])
             sx, sy = cam.fx * r[i] / z, cam.fy * r[i] / z
-            canopy = np.stack([uc[:, None] + sx[:, None] * outline[..., 0],
-                               vc[:, None] - sy[:, None] * outline[..., 1]], -1)
+            canopy = np.stack(
+                [
+                    uc[:, None] + sx[:, None] * outline[..., 0],
+                    vc[:, None] - sy[:, None] * outline[..., 1],
+                ],
+                -1,
+            )
             trunk_col = _hazed(np.tile([0.30, 0.22, 0.14], (i.size, 1)), z, take)
             palette = np.asarray(take.style.foliage)[t["colour"][i].astype(int)] * take.tint
             leaf_col = _hazed(palette, z, take)
@@ -617,19 +659,30 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             base = view.project(x, z)
             top = view.project(x, z, hgt)
             a = p["arm_dir"][i]
-            tx, tz = view.to_camera(p["x"][i] + p["arm"][i] * np.sin(a),
-                                    p["z"][i] + p["arm"][i] * np.cos(a))
+            tx, tz = view.to_camera(
+                p["x"][i] + p["arm"][i] * np.sin(a), p["z"][i] + p["arm"][i] * np.cos(a)
+            )
             tip = view.project(tx, np.maximum(tz, MIN_Z), hgt)
             widths = np.maximum(1, np.round(cam.fx * p["width"][i] / z)).astype(int)
             col = _hazed(np.tile([0.38, 0.38, 0.40], (i.size, 1)), z, take)
             pole_seg = _fixed(np.stack([base, top], 1), limit)
             arm_seg = _fixed(np.stack([top, tip], 1), limit)
             for j in range(i.size):
-                jobs.append((float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), POLE,
-                             int(widths[j])))
+                jobs.append(
+                    (float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), POLE, int(widths[j]))
+                )
                 if p["arm"][i[j]] > 0 and tz[j] > MIN_Z:
-                    jobs.append((float(z[j]), 1, "line", [arm_seg[j]], tuple(col[j]), POLE,
-                                 max(1, int(widths[j]) - 1)))
+                    jobs.append(
+                        (
+                            float(z[j]),
+                            1,
+                            "line",
+                            [arm_seg[j]],
+                            tuple(col[j]),
+                            POLE,
+                            max(1, int(widths[j]) - 1),
+                        )
+                    )
 
     for b, (corners, height_b, colour) in enumerate(sc.buildings):
         xc, zc = view.to_camera(corners[:, 0], corners[:, 1])
@@ -637,8 +690,9 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             depth = float(np.mean(zc))
             faces = _building_faces(take, view, corners, height_b, colour)
             for order, (face, face_col) in enumerate(faces):
-                fixed = np.split(_fixed(np.concatenate(face), limit),
-                                 np.cumsum([len(f) for f in face])[:-1])
+                fixed = np.split(
+                    _fixed(np.concatenate(face), limit), np.cumsum([len(f) for f in face])[:-1]
+                )
                 jobs.append((depth + 1e-6 * b, order, "poly", fixed, face_col, WALL, 0))
 
     jobs.sort(key=lambda j: (-j[0], j[1]))
@@ -653,9 +707,13 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, SHIFT)
 
 
-def _building_faces(take: Take, view: _View, corners: FloatArray, height_b: float,
-                    colour: tuple[float, float, float]
-                    ) -> list[tuple[list[FloatArray], tuple[float, ...]]]:
+def _building_faces(
+    take: Take,
+    view: _View,
+    corners: FloatArray,
+    height_b: float,
+    colour: tuple[float, float, float],
+) -> list[tuple[list[FloatArray], tuple[float, ...]]]:
     """Visible walls of a box building, then their windows: image polygons and a colour."""
     out: list[tuple[list[FloatArray], tuple[float, ...]]] = []
     centre = corners.mean(0)
@@ -756,5 +814,6 @@ def _rain(img: F32, rng: np.random.Generator, width: int, height: int) -> F32:
     img += (np.float32(0.85) - img) * streaks
     mean = img.mean(axis=(0, 1), keepdims=True)
     img = img * np.float32(0.88) + np.float32(0.12) * mean
-    return np.asarray(cv2.GaussianBlur(img, (0, 0), 0.45 * min(max(width / 320, 1.0), 2.5)),
-                      np.float32)
+    return np.asarray(
+        cv2.GaussianBlur(img, (0, 0), 0.45 * min(max(width / 320, 1.0), 2.5)), np.float32
+    )

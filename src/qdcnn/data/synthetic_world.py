@@ -228,8 +228,11 @@ class Route:
     def pose(self, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Centre ``x``, ``z`` and heading at arc lengths ``s`` (linear interpolation)."""
         grid = self.s
-        return (np.interp(s, grid, self.x), np.interp(s, grid, self.z),
-                np.interp(s, grid, self.heading))
+        return (
+            np.interp(s, grid, self.x),
+            np.interp(s, grid, self.z),
+            np.interp(s, grid, self.heading),
+        )
 
     def offset(self, s: FloatArray, d: float | FloatArray) -> tuple[FloatArray, FloatArray]:
         """World points at lateral offset ``d`` (metres, positive right) from the centreline."""
@@ -387,8 +390,9 @@ def periodic_noise(rng: np.random.Generator, n: int, beta: float) -> FloatArray:
     return np.asarray(out / (out.std() + 1e-12))
 
 
-def blobs(rng: np.random.Generator, n: int, points: int = 48,
-          roughness: float = 0.12) -> FloatArray:
+def blobs(
+    rng: np.random.Generator, n: int, points: int = 48, roughness: float = 0.12
+) -> FloatArray:
     """``n`` irregular closed outlines of about unit radius, shape ``(n, points, 2)``.
 
     The radius is modulated by random harmonics 2..13 with amplitudes falling as ``1/k``.
@@ -403,8 +407,13 @@ def blobs(rng: np.random.Generator, n: int, points: int = 48,
     return np.stack([r * np.cos(t), r * np.sin(t)], axis=-1)
 
 
-def shapes(centre: FloatArray, outline: FloatArray, along: FloatArray, across: FloatArray,
-           angle: FloatArray | float) -> FloatArray:
+def shapes(
+    centre: FloatArray,
+    outline: FloatArray,
+    along: FloatArray,
+    across: FloatArray,
+    angle: FloatArray | float,
+) -> FloatArray:
     """Scale unit outlines ``(n, k, 2)`` to semi-axes (along, across) about ``centre (n, 2)``,
     with the first axis along world heading ``angle``."""
     angle = np.broadcast_to(np.asarray(angle, dtype=np.float64), (len(centre),))
@@ -426,8 +435,7 @@ def strips(a: FloatArray, b: FloatArray, width: FloatArray, pieces: int = 24) ->
     return np.concatenate([side + off[:, None, :], (side - off[:, None, :])[:, ::-1]], axis=1)
 
 
-def _positions(rng: np.random.Generator, s_lo: float, s_hi: float,
-               per_100m: float) -> FloatArray:
+def _positions(rng: np.random.Generator, s_lo: float, s_hi: float, per_100m: float) -> FloatArray:
     n = rng.poisson(max(per_100m, 0.0) * max(s_hi - s_lo, 0.0) / 100.0)
     return np.sort(rng.uniform(s_lo, s_hi, n))
 
@@ -440,9 +448,15 @@ def _off_road(route: Route, x: FloatArray, z: FloatArray, clearance: float) -> N
     return np.asarray(dist >= clearance)
 
 
-def _roadside(rng: np.random.Generator, route: Route, s_lo: float, s_hi: float,
-              per_100m: float, gap: tuple[float, float],
-              clearance: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _roadside(
+    rng: np.random.Generator,
+    route: Route,
+    s_lo: float,
+    s_hi: float,
+    per_100m: float,
+    gap: tuple[float, float],
+    clearance: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Random points on both sides, ``gap`` metres beyond the road edge: x, z, side."""
     left, right = (_positions(rng, s_lo, s_hi, per_100m) for _ in range(2))
     s = np.concatenate([left, right])
@@ -453,8 +467,16 @@ def _roadside(rng: np.random.Generator, route: Route, s_lo: float, s_hi: float,
     return x[keep], z[keep], np.stack([s[keep], side[keep]])
 
 
-def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: float, s_hi: float,
-                 shadow_direction: float, sun_elevation: float, sun_out: bool) -> Scenery:
+def make_scenery(
+    rng: np.random.Generator,
+    style: Style,
+    route: Route,
+    s_lo: float,
+    s_hi: float,
+    shadow_direction: float,
+    sun_elevation: float,
+    sun_out: bool,
+) -> Scenery:
     """Lay out trees, poles, buildings and ground decals along ``route`` between two arc lengths.
 
     Cast shadows are ground polygons computed from each caster's shape and the sun; their
@@ -485,8 +507,13 @@ def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: flo
     crown = height - radius * (1.6 if pine else 1.0)  # canopy centre height
     trunk_top = crown - radius * (1.2 if pine else 0.7)
     sc.trees = {
-        "x": x, "z": z, "height": height, "radius": radius, "crown": crown,
-        "trunk_top": trunk_top, "trunk_w": rng.uniform(0.25, 0.45, n),
+        "x": x,
+        "z": z,
+        "height": height,
+        "radius": radius,
+        "crown": crown,
+        "trunk_top": trunk_top,
+        "trunk_w": rng.uniform(0.25, 0.45, n),
         "colour": rng.integers(0, len(style.foliage), n).astype(np.float64),
     }
     sc.tree_outlines = _pine_outlines(rng, n) if pine else blobs(rng, n, 56, 0.13)
@@ -495,9 +522,13 @@ def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: flo
     if sun_out and n:
         base = np.stack([x, z], -1)
         along = radius / np.sin(sun_elevation) * (1.3 if pine else 1.0)
-        canopy = shapes(base + sdir * (crown * cot)[:, None], blobs(rng, n, 64, 0.10 if pine
-                                                                     else 0.18),
-                        along, radius * (0.8 if pine else 1.0), shadow_direction)
+        canopy = shapes(
+            base + sdir * (crown * cot)[:, None],
+            blobs(rng, n, 64, 0.10 if pine else 0.18),
+            along,
+            radius * (0.8 if pine else 1.0),
+            shadow_direction,
+        )
         dark = darkness(n)
         trunk = strips(base, base + sdir * (trunk_top * cot)[:, None], sc.trees["trunk_w"])
         shadow_parts += [(canopy, dark), (trunk, dark)]
@@ -507,7 +538,10 @@ def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: flo
     _, _, h_road = route.pose(ps)
     m = px.size
     sc.poles = {
-        "x": px, "z": pz, "height": rng.uniform(6.0, 9.5, m), "width": rng.uniform(0.16, 0.26, m),
+        "x": px,
+        "z": pz,
+        "height": rng.uniform(6.0, 9.5, m),
+        "width": rng.uniform(0.16, 0.26, m),
         "arm": rng.uniform(1.2, 2.8, m) * (rng.random(m) < 0.7),
         "arm_dir": h_road + np.where(pside < 0, np.pi / 2, -np.pi / 2),
     }
@@ -532,8 +566,12 @@ def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: flo
             right = np.array([np.cos(angle), -np.sin(angle)])
             cx_, cz_ = route.offset(np.array([s]), side * (setback + depth / 2))
             c = np.array([cx_[0], cz_[0]])
-            corners = np.array([c + a_ * fwd * length / 2 + b_ * right * depth / 2
-                                for a_, b_ in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+            corners = np.array(
+                [
+                    c + a_ * fwd * length / 2 + b_ * right * depth / 2
+                    for a_, b_ in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+                ]
+            )
             if not _off_road(route, corners[:, 0], corners[:, 1], half + 1.5).all():
                 continue
             height_b = rng.uniform(6.0, 16.0 if style.background == "city" else 11.0)
@@ -546,24 +584,41 @@ def make_scenery(rng: np.random.Generator, style: Style, route: Route, s_lo: flo
     sc.shadows = PolySet.join(shadow_parts)
 
     # Ground decals: tar repairs on the road, dark bushes beside it, puddles on the road.
-    def on_road(per_100m: float, size: tuple[float, float], stretch: tuple[float, float],
-                rough: float) -> PolySet:
+    def on_road(
+        per_100m: float, size: tuple[float, float], stretch: tuple[float, float], rough: float
+    ) -> PolySet:
         s = _positions(rng, s_lo, s_hi, per_100m)
         d = rng.uniform(-half + 0.8, half - 0.8, s.size)
         xx, zz = route.offset(s, d)
         _, _, hh = route.pose(s)
         r = rng.uniform(*size, s.size)
-        polys = shapes(np.stack([xx, zz], -1), blobs(rng, s.size, 32, rough),
-                       r * rng.uniform(*stretch, s.size), r, hh + rng.normal(0, 0.3, s.size))
+        polys = shapes(
+            np.stack([xx, zz], -1),
+            blobs(rng, s.size, 32, rough),
+            r * rng.uniform(*stretch, s.size),
+            r,
+            hh + rng.normal(0, 0.3, s.size),
+        )
         return PolySet.join([(polys, np.ones(s.size))])
 
     sc.tar = on_road(style.tar_patches, (0.5, 2.0), (1.0, 2.5), 0.25)
     sc.puddles = on_road(style.puddles, (0.6, 2.0), (1.2, 3.0), 0.25)
     bx, bz, _ = _roadside(rng, route, s_lo, s_hi, style.dark_bushes, (1.0, 9.0), half + 0.8)
     r = rng.uniform(0.8, 2.5, bx.size)
-    sc.bushes = PolySet.join([(shapes(np.stack([bx, bz], -1), blobs(rng, bx.size, 32, 0.3),
-                                      r * rng.uniform(1.0, 2.0, bx.size), r,
-                                      rng.uniform(0, 2 * np.pi, bx.size)), np.ones(bx.size))])
+    sc.bushes = PolySet.join(
+        [
+            (
+                shapes(
+                    np.stack([bx, bz], -1),
+                    blobs(rng, bx.size, 32, 0.3),
+                    r * rng.uniform(1.0, 2.0, bx.size),
+                    r,
+                    rng.uniform(0, 2 * np.pi, bx.size),
+                ),
+                np.ones(bx.size),
+            )
+        ]
+    )
     return sc
 
 
@@ -593,8 +648,14 @@ def _convex_hull(points: NDArray[np.float32]) -> FloatArray:
     return np.asarray(cv2.convexHull(points)[:, 0, :], dtype=np.float64)
 
 
-def make_take(rng: np.random.Generator, style: Style, curvature: FloatArray, s0: float,
-              s_lo: float, s_hi: float) -> Take:
+def make_take(
+    rng: np.random.Generator,
+    style: Style,
+    curvature: FloatArray,
+    s0: float,
+    s_lo: float,
+    s_hi: float,
+) -> Take:
     """Draw the materials, sun and scenery of a take on a curvature profile."""
     route = build_route(curvature, s0, float(rng.uniform(*style.road_width)))
     base_line = np.asarray(style.line_colours[int(rng.integers(len(style.line_colours)))])
@@ -624,8 +685,9 @@ def make_take(rng: np.random.Generator, style: Style, curvature: FloatArray, s0:
     )
 
 
-def _edge_presence(rng: np.random.Generator, style: Style,
-                   route: Route) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+def _edge_presence(
+    rng: np.random.Generator, style: Style, route: Route
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Where the roadside strips (curbs, gravel, sidewalk) are laid, per side."""
     n = route.curvature.size
     out = []

@@ -85,13 +85,17 @@ def write_udacity(
         when = t0 + timedelta(milliseconds=round(i * 1000.0 / float(fps)))
         paths = [img_dir / udacity_name(kind, when) for kind in ("center", "left", "right")]
         write_image(paths[0], scene.image)
-        rows.append(", ".join([
-            *(str(p) for p in paths),
-            simulator_number(scene.steering),
-            simulator_number(scene.throttle),
-            "0",
-            simulator_number(scene.speed),
-        ]))
+        rows.append(
+            ", ".join(
+                [
+                    *(str(p) for p in paths),
+                    simulator_number(scene.steering),
+                    simulator_number(scene.throttle),
+                    "0",
+                    simulator_number(scene.speed),
+                ]
+            )
+        )
     log = root / "driving_log.csv"
     log.write_text("".join(r + "\n" for r in rows), encoding="utf-8")
     return log
@@ -144,6 +148,8 @@ def write_carla(
         out.write_text("".join(v + "\n" for v in values), encoding="utf-8")
     else:
         out = root / "labels.csv"
-        out.write_text("image,steering\n" + "".join(
-            f"{n},{v}\n" for n, v in zip(names, values, strict=True)), encoding="utf-8")
+        out.write_text(
+            "image,steering\n" + "".join(f"{n},{v}\n" for n, v in zip(names, values, strict=True)),
+            encoding="utf-8",
+        )
     return out
