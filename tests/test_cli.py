@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 from pathlib import Path
 
@@ -340,3 +341,25 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
     for row in rows:
         assert len(row["features"]) == 4  # two slopes, then the two road-centre columns
         assert row["direction"] in ("left", "straight", "right")
+
+
+def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    args = ["evaluate", "--data", "synthetic:track2:200", "--method", "all", "--folds", "2"]
+    monkeypatch.setattr("qdcnn.cli._has_torch", lambda: False)
+    res = runner.invoke(app, [*args, "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert "note: skipping dnn-* methods: torch is not installed" in res.stderr
+    methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
+    assert len(methods) == 6 and not any(m.startswith("dnn-") for m in methods)
+    if importlib.util.find_spec("torch") is None:
+        return
+    monkeypatch.setattr("qdcnn.cli._has_torch", lambda: True)
+    monkeypatch.setattr("qdcnn.cli._has_gpu", lambda: False)
+    res = runner.invoke(app, [*args, "--epochs", "1", "--threads", "1", "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert "note: skipping dnn-resnet50: no GPU" in res.stderr
+    methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
+    assert methods[-1] == "dnn-pilotnet" and "dnn-resnet50" not in methods

@@ -27,6 +27,7 @@ from qdcnn.cli_common import (
     out,
     progress,
     report_error,
+    report_note,
 )
 from qdcnn.cli_noise import circuit_cmd, noise_sweep_cmd
 from qdcnn.config import PipelineConfig, ShadowConfig
@@ -371,8 +372,12 @@ def evaluate_cmd(
         methods = list(ALL_METHODS if method == "all" else [method])
         if method == "all" and not _has_torch():
             methods = [m for m in methods if m not in DNN_METHODS]
-            report_error(
-                "skipping dnn-* methods: torch is not installed (pip install 'qdcnn[dnn]')"
+            report_note("skipping dnn-* methods: torch is not installed (pip install 'qdcnn[dnn]')")
+        elif method == "all" and not _has_gpu():
+            methods.remove("dnn-resnet50")
+            report_note(
+                "skipping dnn-resnet50: no GPU, and its 25 epochs x folds take tens of "
+                "core-hours on a CPU (ask for it alone: --method dnn-resnet50)"
             )
         labels = frames.labels(cfg.labels)
         check_labels_usable(labels, source=data)
@@ -462,6 +467,14 @@ def _has_torch() -> bool:
     from qdcnn._optional import HAS_TORCH
 
     return HAS_TORCH
+
+
+def _has_gpu() -> bool:
+    """Whether torch sees a CUDA or Apple MPS device (torch must be installed)."""
+    import torch
+
+    mps = getattr(torch.backends, "mps", None)
+    return bool(torch.cuda.is_available() or (mps is not None and mps.is_available()))
 
 
 def _train_default_direction_model(method: str, seed: int) -> Any:

@@ -47,6 +47,11 @@ def report_error(message: str) -> None:
     err.print(f"[red]error:[/red] {message}", soft_wrap=True, markup=True)
 
 
+def report_note(message: str) -> None:
+    """One line on stderr about something left out on purpose (not a failure)."""
+    err.print(f"[yellow]note:[/yellow] {message}", soft_wrap=True, markup=True)
+
+
 class ProgressBar:
     """A progress bar on stderr, shown only when stderr is a terminal.
 
