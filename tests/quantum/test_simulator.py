@@ -65,6 +65,22 @@ def test_uu_dagger_probabilities_match_aer_and_formula(rng: np.random.Generator)
     np.testing.assert_allclose(ours, run_aer(circ), atol=1e-10)
 
 
+def test_single_rotation_path_equals_the_statevector_path(rng: np.random.Generator) -> None:
+    # one-qubit RY-only circuits skip the 2x2 products; the result must not change
+    tx = rng.uniform(-4 * np.pi, 4 * np.pi, 200)
+    for circ in (
+        uu_dagger_circuit(1.3, tx),
+        uu_dagger_circuit(tx, 0.4),
+        CircuitBuilder(1, 200).ry(0, tx).ry(0, 0.2).ry(0, -tx / 3).build(),
+        CircuitBuilder(1, 1).ry(0, 2.0).build(),
+    ):
+        psi = statevector(circ)
+        np.testing.assert_allclose(probabilities(circ), np.abs(psi) ** 2, atol=1e-14)
+    # anything else takes the general path, and agrees with Aer as before
+    mixed = CircuitBuilder(1, 50).ry(0, tx[:50]).rz(0, tx[50:100]).ry(0, 0.3).build()
+    np.testing.assert_allclose(probabilities(mixed), run_aer(mixed), atol=1e-10)
+
+
 def test_vqc_circuit_equals_qiskit_library_circuits(rng: np.random.Generator) -> None:
     x = rng.uniform(-1, 4, (8, 2))
     w = rng.uniform(-np.pi, np.pi, 4)

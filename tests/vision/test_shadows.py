@@ -26,6 +26,7 @@ from qdcnn.vision.shadows import (
     block_means,
     calibrate_centroid,
     detect_shadows_uu,
+    expand_blocks,
     extreme_cluster,
     feature_map,
     multi_centroid_test,
@@ -60,6 +61,17 @@ def test_small_frames_get_one_block_per_downsampled_pixel() -> None:
     g = block_grid((160, 320), 4, 79)
     assert g.downsampled == (40, 80)
     assert g.grid_shape == (40, 79)
+
+
+@pytest.mark.parametrize(("shape", "grid"), [((160, 320), 79), ((203, 317), 13), ((9, 5), 79)])
+def test_expand_blocks_repeats_each_block_over_its_pixels(
+    shape: tuple[int, int], grid: int, rng: np.random.Generator
+) -> None:
+    g = block_grid(shape, 4, grid)
+    blocks = rng.random(g.grid_shape) < 0.5
+    full = expand_blocks(blocks, g)
+    assert full.shape == shape and full.dtype == bool
+    np.testing.assert_array_equal(full, blocks[g.row_of[:, None], g.col_of[None, :]])
 
 
 def test_block_means_equal_area_downsampling_then_block_average(rng: np.random.Generator) -> None:

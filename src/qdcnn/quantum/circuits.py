@@ -114,7 +114,7 @@ class CircuitBuilder:
             raise ParameterError(
                 "angle", f"array of shape {a.shape}", f"a scalar or shape ({self.batch_size},)"
             )
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ParameterError("angle", "non-finite values", "finite angles")
         return a
 

@@ -137,6 +137,25 @@ def apply_readout_error(
     return t.reshape(probs.shape)
 
 
+def _single_rotation(circuit: CircuitBatch) -> NDArray[np.float64] | None:
+    """Probabilities of a one-qubit circuit that fuses to one ``RY(t)``, else ``None``.
+
+    ``RY(t)|0> = (cos t/2, sin t/2)``, so ``P(1) = sin^2(t/2) = (1 - cos t) / 2``: the
+    statevector result with one cosine per circuit instead of a cosine, a sine and a
+    2x2 product (the UU-dagger circuit of every image block takes this path).
+    """
+    if circuit.num_qubits != 1:
+        return None
+    gates = fuse_rotations(circuit.gates)
+    if len(gates) != 1 or gates[0].name != "ry" or gates[0].angle is None:
+        return None
+    half_cos = 0.5 * np.cos(np.broadcast_to(gates[0].angle, (circuit.batch_size,)))
+    out = np.empty((circuit.batch_size, 2))
+    np.add(0.5, half_cos, out=out[:, 0])
+    np.subtract(0.5, half_cos, out=out[:, 1])
+    return out
+
+
 def probabilities(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDArray[np.float64]:
     """Exact outcome probabilities, shape ``(B, 2**n)``, index = basis state (qubit 0 = LSB).
 
@@ -144,6 +163,9 @@ def probabilities(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDAr
     density-matrix simulator, then the readout error.
     """
     if noise is None or noise.is_ideal:
+        single = _single_rotation(circuit)
+        if single is not None:
+            return single
         psi = _evolve(circuit)
         probs = np.abs(psi) ** 2 if np.iscomplexobj(psi) else psi * psi
     else:

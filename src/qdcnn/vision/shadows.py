@@ -149,19 +149,42 @@ def block_means(
     mean over the block's full-resolution pixels, so it is computed exactly from
     one summed-area table (:func:`cv2.integral`) without building the small image.
     """
-    table = cv2.integral(values)
-    r = geometry.row_edges * downsample
-    c = geometry.col_edges * downsample
-    sums = table[r[1:, None], c[None, 1:]] - table[r[:-1, None], c[None, 1:]]
-    sums = sums - table[r[1:, None], c[None, :-1]] + table[r[:-1, None], c[None, :-1]]
-    return sums / np.outer(np.diff(r), np.diff(c))
+    table = cv2.integral(values).ravel()
+    corners, area = _block_corners(
+        values.shape[1],
+        tuple((geometry.row_edges * downsample).tolist()),
+        tuple((geometry.col_edges * downsample).tolist()),
+    )
+    sums = table.take(corners[0]) - table.take(corners[1])
+    sums = sums - table.take(corners[2]) + table.take(corners[3])
+    return (sums / area).reshape(geometry.grid_shape)
+
+
+@lru_cache(maxsize=64)
+def _block_corners(
+    width: int, rows: tuple[int, ...], cols: tuple[int, ...]
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Flat indices into a ``width + 1`` wide summed-area table of each block's four
+    corners (bottom-right, top-right, bottom-left, top-left) and the block areas."""
+    r, c = np.asarray(rows, dtype=np.intp), np.asarray(cols, dtype=np.intp)
+    stride = width + 1
+    corners = np.stack(
+        [
+            r[1:, None] * stride + c[None, 1:],
+            r[:-1, None] * stride + c[None, 1:],
+            r[1:, None] * stride + c[None, :-1],
+            r[:-1, None] * stride + c[None, :-1],
+        ]
+    ).reshape(4, -1)
+    area = np.outer(np.diff(r), np.diff(c)).ravel().astype(np.float64)
+    corners.setflags(write=False)
+    area.setflags(write=False)
+    return corners, area
 
 
 def expand_blocks(block_mask: NDArray[np.bool_], geometry: BlockGrid) -> NDArray[np.bool_]:
-    """Expand a block-level mask to the full image size."""
-    rows = np.bincount(geometry.row_of, minlength=geometry.grid_shape[0])
-    cols = np.bincount(geometry.col_of, minlength=geometry.grid_shape[1])
-    return np.repeat(np.repeat(block_mask, rows, axis=0), cols, axis=1)
+    """Expand a block-level mask to the full image size (columns first: the smaller copy)."""
+    return block_mask.take(geometry.col_of, axis=1).take(geometry.row_of, axis=0)
 
 
 def binary_median(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
