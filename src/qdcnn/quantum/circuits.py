@@ -184,7 +184,11 @@ def uu_dagger_circuit(theta_c: ArrayLike, theta_x: ArrayLike) -> CircuitBatch:
         Angles: scalars or 1-D arrays of one common batch size.
     """
     b, (tc, tx) = _batch_angles(theta_c, theta_x)
-    return CircuitBuilder(1, b).ry(0, tc).ry(0, -tx).build("uu_dagger")
+    # built directly rather than through CircuitBuilder: one circuit per image block is
+    # made per frame, and the builder's per-gate checks cost as much as simulating it
+    if not (np.isfinite(tc).all() and np.isfinite(tx).all()):
+        raise ParameterError("angle", "non-finite values", "finite angles")
+    return CircuitBatch(1, b, (Gate("ry", (0,), tc), Gate("ry", (0,), -tx)), "uu_dagger")
 
 
 def zz_feature_map(

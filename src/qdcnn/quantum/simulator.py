@@ -149,7 +149,8 @@ def _single_rotation(circuit: CircuitBatch) -> NDArray[np.float64] | None:
     gates = fuse_rotations(circuit.gates)
     if len(gates) != 1 or gates[0].name != "ry" or gates[0].angle is None:
         return None
-    half_cos = 0.5 * np.cos(np.broadcast_to(gates[0].angle, (circuit.batch_size,)))
+    half_cos = np.cos(gates[0].angle)
+    half_cos *= 0.5
     out = np.empty((circuit.batch_size, 2))
     np.add(0.5, half_cos, out=out[:, 0])
     np.subtract(0.5, half_cos, out=out[:, 1])

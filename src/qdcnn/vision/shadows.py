@@ -106,6 +106,10 @@ class BlockGrid:
     col_edges: NDArray[np.intp]
     row_of: NDArray[np.intp]
     col_of: NDArray[np.intp]
+    #: (table width, downsample) -> summed-area corner indices and block areas
+    corner_cache: dict[tuple[int, int], tuple[NDArray[np.intp], NDArray[np.float64]]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @property
     def grid_shape(self) -> tuple[int, int]:
@@ -149,24 +153,24 @@ def block_means(
     mean over the block's full-resolution pixels, so it is computed exactly from
     one summed-area table (:func:`cv2.integral`) without building the small image.
     """
-    table = cv2.integral(values).ravel()
-    corners, area = _block_corners(
-        values.shape[1],
-        tuple((geometry.row_edges * downsample).tolist()),
-        tuple((geometry.col_edges * downsample).tolist()),
-    )
-    sums = table.take(corners[0]) - table.take(corners[1])
-    sums = sums - table.take(corners[2]) + table.take(corners[3])
+    key = (values.shape[1], downsample)
+    cached = geometry.corner_cache.get(key)
+    if cached is None:
+        cached = _block_corners(
+            values.shape[1], geometry.row_edges * downsample, geometry.col_edges * downsample
+        )
+        geometry.corner_cache[key] = cached
+    corners, area = cached
+    at = cv2.integral(values).ravel().take(corners)  # (4, blocks)
+    sums = at[0] - at[1] - at[2] + at[3]
     return (sums / area).reshape(geometry.grid_shape)
 
 
-@lru_cache(maxsize=64)
 def _block_corners(
-    width: int, rows: tuple[int, ...], cols: tuple[int, ...]
+    width: int, r: NDArray[np.intp], c: NDArray[np.intp]
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Flat indices into a ``width + 1`` wide summed-area table of each block's four
     corners (bottom-right, top-right, bottom-left, top-left) and the block areas."""
-    r, c = np.asarray(rows, dtype=np.intp), np.asarray(cols, dtype=np.intp)
     stride = width + 1
     corners = np.stack(
         [
@@ -197,7 +201,7 @@ def binary_median(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
     if ksize * ksize > 255:
         return cv2.medianBlur(mask, ksize) if ksize <= 5 else _median_large(mask, ksize)
     sums = cv2.boxFilter(mask, -1, (ksize, ksize), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    return (sums > (ksize * ksize) // 2).astype(np.uint8)
+    return np.greater(sums, (ksize * ksize) // 2).view(np.uint8)
 
 
 def _median_large(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
@@ -527,10 +531,10 @@ def detect_shadows_uu(
 def _to_image_mask(
     block_mask: NDArray[np.bool_], geometry: BlockGrid, median_ksize: int
 ) -> NDArray[np.bool_]:
-    full = expand_blocks(block_mask, geometry).view(np.uint8)
+    full = expand_blocks(block_mask, geometry)
     if median_ksize > 1:
-        full = binary_median(full, median_ksize)
-    return full.astype(bool)
+        full = binary_median(full.view(np.uint8), median_ksize).view(bool)  # 0/1 bytes
+    return full
 
 
 def _detect_multi(
