@@ -37,7 +37,6 @@ JSON.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import platform
@@ -51,7 +50,6 @@ import numpy as np
 from sklearn.ensemble import HistGradientBoostingClassifier
 
 from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
-from qdcnn.errors import InputError
 from qdcnn.experiments.datasets import FrameSet, load_frameset
 from qdcnn.experiments.evaluate import (
     QUANTUM_METHODS,
@@ -59,9 +57,9 @@ from qdcnn.experiments.evaluate import (
     evaluate_features,
     make_classifier,
 )
-from qdcnn.experiments.features import FeatureTable, cache_dir, compute_features
-from qdcnn.pipeline import GROUPINGS, process_frame
-from qdcnn.vision.grouping import feature_names, mode_columns
+from qdcnn.experiments.features import compute_features
+from qdcnn.pipeline import process_frame
+from qdcnn.vision.grouping import mode_columns
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DATASETS = {
@@ -100,57 +98,6 @@ def mode_config(mode: str) -> PipelineConfig:
     base = named_base_config()
     features = "slopes" if mode == "slopes-rgb" else mode
     return replace(base, grouping=replace(base.grouping, features=features))
-
-
-def feature_table(frames: FrameSet, config: PipelineConfig) -> FeatureTable:
-    """:func:`compute_features`, or the same table computed here when it cannot hold it.
-
-    ``compute_features`` allocates one column per extra feature, but "intercepts",
-    "angles", "far-offsets" and "road-centre" have two each; until that is fixed, such
-    tables are computed here (same pipeline, all three groupings, cached beside it).
-    """
-    extras = config.grouping.extra_features
-    if len(feature_names(extras)) == 2 + len(extras):
-        return compute_features(frames, config)
-    payload = json.dumps(
-        {"data": frames.fingerprint(), "config": config.to_dict(), "study": 1},
-        sort_keys=True,
-        default=str,
-    )
-    path = cache_dir() / f"study-{hashlib.sha256(payload.encode()).hexdigest()[:32]}.npz"
-    if path.is_file():
-        with np.load(path) as data:
-            return FeatureTable(
-                {g: data[f"features/{g}"] for g in GROUPINGS},
-                {g: data[f"status/{g}"] for g in GROUPINGS},
-                data["readable"],
-                seconds_per_frame=float(data["seconds"]),
-                cached=True,
-            )
-    n, width = len(frames), len(feature_names(extras))
-    feats = {g: np.full((n, width), np.nan) for g in GROUPINGS}
-    status = {g: np.full(n, "unreadable", dtype="<U10") for g in GROUPINGS}
-    readable = np.zeros(n, bool)
-    rng = np.random.default_rng(config.seed)
-    elapsed = 0.0
-    for i in range(n):
-        try:
-            image = frames.image(i)
-        except InputError:
-            continue
-        t0 = time.perf_counter()
-        result = process_frame(image, config, GROUPINGS, rng=rng)
-        elapsed += time.perf_counter() - t0
-        readable[i] = True
-        for g, lane in result.lanes.items():
-            feats[g][i], status[g][i] = lane.features, lane.status
-    seconds = elapsed / max(int(readable.sum()), 1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    arrays: dict[str, Any] = {"readable": readable, "seconds": np.array(seconds)}
-    for g in GROUPINGS:
-        arrays[f"features/{g}"], arrays[f"status/{g}"] = feats[g], status[g]
-    np.savez_compressed(path, **arrays)
-    return FeatureTable(feats, status, readable, seconds_per_frame=seconds)
 
 
 def gbm_accuracy(X: np.ndarray, y: np.ndarray) -> float:
@@ -224,7 +171,7 @@ def study_dataset(
         table_key = "paper" if mode == "paper" else "named"
         if table_key not in tables:
             t0 = time.perf_counter()
-            tables[table_key] = feature_table(frames, cfg)
+            tables[table_key] = compute_features(frames, cfg)
             print(f"  features {frames.name}/{table_key}: {time.perf_counter() - t0:.0f} s")
         table = tables[table_key]
         keep = table.readable
