@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 import typer
@@ -293,18 +293,19 @@ def _evaluation_config(
     edges: str = "grey",
     shadow_removal: bool = True,
 ) -> PipelineConfig:
-    from qdcnn.config import GroupingConfig, LaneConfig
+    from qdcnn.config import LaneConfig
     from qdcnn.errors import ParameterError
+    from qdcnn.experiments.direction_model import with_lane_options
 
     if lanes not in ("udacity", "paper"):
         raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
     lane_cfg = LaneConfig.udacity() if lanes == "udacity" else LaneConfig()
-    if edges not in ("grey", "rgb"):
-        raise ParameterError("edges", edges, "'grey' (the paper) or 'rgb' (colour Canny)")
-    channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
-    lane_cfg = replace(lane_cfg, edge_channels=channels, remove_shadows=shadow_removal)
-    grouping = GroupingConfig.for_features(features)
-    return replace(PipelineConfig(seed=seed), lanes=lane_cfg, grouping=grouping)
+    return with_lane_options(
+        replace(PipelineConfig(seed=seed), lanes=lane_cfg),
+        features=features,
+        edges=edges,
+        shadow_removal=shadow_removal,
+    )
 
 
 FeaturesOpt = Annotated[

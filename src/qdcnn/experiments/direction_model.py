@@ -11,15 +11,15 @@ import os
 import pickle
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn import __version__
-from qdcnn.config import LaneConfig, PipelineConfig
+from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
 from qdcnn.data.labels import DIRECTIONS
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import QUANTUM_METHODS, make_classifier
 
 KIND = "qdcnn-direction-model"
@@ -74,6 +74,25 @@ class DirectionModel:
 def default_config() -> PipelineConfig:
     """Settings for 320x160 frames: the paper's, with one smoothing pass (see LaneConfig)."""
     return replace(PipelineConfig(), lanes=LaneConfig.udacity())
+
+
+def with_lane_options(
+    config: PipelineConfig,
+    *,
+    features: str = "slopes",
+    edges: str = "grey",
+    shadow_removal: bool = True,
+) -> PipelineConfig:
+    """``config`` with a feature mode, Canny's input and shadow removal set.
+
+    The options of ``qdcnn evaluate`` and ``train-direction`` (``--features``, ``--edges``,
+    ``--[no-]shadow-removal``); the defaults are the paper's.
+    """
+    if edges not in ("grey", "rgb"):
+        raise ParameterError("edges", edges, "'grey' (the paper) or 'rgb' (colour Canny)")
+    channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
+    lanes = replace(config.lanes, edge_channels=channels, remove_shadows=shadow_removal)
+    return replace(config, lanes=lanes, grouping=GroupingConfig.for_features(features))
 
 
 def train_direction_model(

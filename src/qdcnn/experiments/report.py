@@ -177,10 +177,9 @@ def named_options_config(config: PipelineConfig) -> PipelineConfig:
     Road-centre features, colour Canny and no shadow removal
     (``qdcnn evaluate --features road-centre --edges rgb --no-shadow-removal``).
     """
-    from qdcnn.config import GroupingConfig
+    from qdcnn.experiments.direction_model import with_lane_options
 
-    lanes = replace(config.lanes, edge_channels="rgb", remove_shadows=False)
-    return replace(config, lanes=lanes, grouping=GroupingConfig.for_features("road-centre"))
+    return with_lane_options(config, features="road-centre", edges="rgb", shadow_removal=False)
 
 
 def direction_section(out_dir: Path, *, n_frames: int, seed: int, say: Say) -> Section:
