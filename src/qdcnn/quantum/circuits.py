@@ -114,8 +114,7 @@ class CircuitBuilder:
             raise ParameterError(
                 "angle", f"array of shape {a.shape}", f"a scalar or shape ({self.batch_size},)"
             )
-        if not np.isfinite(a).all():
-            raise ParameterError("angle", "non-finite values", "finite angles")
+        _check_finite(a)
         return a
 
     def add(
@@ -159,6 +158,11 @@ class CircuitBuilder:
         return CircuitBatch(self.num_qubits, self.batch_size, tuple(self.gates), name)
 
 
+def _check_finite(angles: NDArray[np.float64]) -> None:
+    if not np.isfinite(angles).all():
+        raise ParameterError("angle", "non-finite values", "finite angles")
+
+
 def _batch_angles(*angles: ArrayLike) -> tuple[int, list[NDArray[np.float64]]]:
     """Common batch size of scalar or 1-D angle arrays; length-1 arrays become scalars."""
     arrs = [np.asarray(a, dtype=np.float64) for a in angles]
@@ -186,8 +190,8 @@ def uu_dagger_circuit(theta_c: ArrayLike, theta_x: ArrayLike) -> CircuitBatch:
     b, (tc, tx) = _batch_angles(theta_c, theta_x)
     # built directly rather than through CircuitBuilder: one circuit per image block is
     # made per frame, and the builder's per-gate checks cost as much as simulating it
-    if not (np.isfinite(tc).all() and np.isfinite(tx).all()):
-        raise ParameterError("angle", "non-finite values", "finite angles")
+    _check_finite(tc)
+    _check_finite(tx)
     return CircuitBatch(1, b, (Gate("ry", (0,), tc), Gate("ry", (0,), -tx)), "uu_dagger")
 
 
