@@ -11,6 +11,8 @@ from qdcnn.quantum.uu_dagger import (
     band_halfwidth,
     classify,
     fidelity,
+    overlap_fidelity,
+    ry_state_table,
     value_to_angle,
 )
 
@@ -81,3 +83,36 @@ def test_aer_backend_agrees_with_numpy(rng: np.random.Generator) -> None:
 def test_unknown_backend() -> None:
     with pytest.raises(ParameterError, match="backend='gpu' is invalid"):
         fidelity(0.1, 0.2, backend="gpu")
+
+
+@pytest.mark.parametrize("denominator", [1, 7, 16, 32])
+def test_state_table_overlap_equals_the_circuit_simulation(denominator: int) -> None:
+    cos_half, sin_half = ry_state_table(denominator)
+    values = np.arange(cos_half.size) / denominator
+    assert values[-1] == 255.0
+    for centroid in (0.0, 61.3, 200.0):
+        tc = float(value_to_angle(centroid))
+        np.testing.assert_allclose(
+            overlap_fidelity(tc, cos_half, sin_half),
+            fidelity(tc, value_to_angle(values), shots=None),
+            rtol=0,
+            atol=1e-12,
+        )
+
+
+def test_state_table_overlap_agrees_with_aer(rng: np.random.Generator) -> None:
+    pytest.importorskip("qiskit_aer")
+    cos_half, sin_half = ry_state_table(16)
+    k = rng.integers(0, cos_half.size, 25)
+    tc = float(value_to_angle(87.0))
+    np.testing.assert_allclose(
+        overlap_fidelity(tc, cos_half[k], sin_half[k]),
+        fidelity(tc, value_to_angle(k / 16), shots=None, backend="aer"),
+        atol=1e-10,
+    )
+
+
+@pytest.mark.parametrize(("denominator", "scale"), [(0, 255.0), (4, 255.5), (3, 0.0)])
+def test_state_table_checks_its_arguments(denominator: int, scale: float) -> None:
+    with pytest.raises(ParameterError, match="denominator/scale"):
+        ry_state_table(denominator, scale)

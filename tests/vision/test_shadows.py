@@ -12,6 +12,7 @@ import pytest
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.uu_dagger import angle_to_value, band_halfwidth
+from qdcnn.vision import shadows
 from qdcnn.vision.shadow_training import (
     MULTI_THRESHOLD_GRID,
     halfwidth_threshold,
@@ -30,6 +31,7 @@ from qdcnn.vision.shadows import (
     extreme_cluster,
     feature_map,
     multi_centroid_test,
+    state_lookup,
 )
 
 EXACT = ShadowConfig(shots=None)
@@ -135,6 +137,29 @@ def test_aer_backend_gives_the_same_exact_scores(rng: np.random.Generator) -> No
     a = detect_shadows_uu(img, EXACT)
     b = detect_shadows_uu(img, EXACT, backend="aer")
     np.testing.assert_allclose(a.block_scores, b.block_scores, atol=1e-10)
+
+
+@pytest.mark.parametrize("shots", [None, 1024])
+def test_state_table_path_equals_the_cosine_path(
+    rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch, shots: int | None
+) -> None:
+    img, _ = road_with_shadow(rng)
+    cfg = replace(EXACT, shots=shots)
+    geometry = block_grid(img.shape[:2], cfg.downsample, cfg.grid)
+    assert state_lookup(geometry, img.shape[1], cfg.downsample) is not None
+    table = detect_shadows_uu(img, cfg, rng=3)
+    monkeypatch.setattr(shadows, "MAX_STATE_TABLE", 0)
+    geometry.state_cache.clear()
+    assert state_lookup(geometry, img.shape[1], cfg.downsample) is None
+    cosine = detect_shadows_uu(img, cfg, rng=3)
+    geometry.state_cache.clear()
+    np.testing.assert_allclose(table.block_scores, cosine.block_scores, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(table.mask, cosine.mask)
+
+
+def test_state_tables_are_skipped_for_very_large_blocks() -> None:
+    geometry = block_grid((3000, 4000), 4, 79)  # blocks of about 38 x 50 pixels
+    assert state_lookup(geometry, 4000, 4) is None
 
 
 def test_chromaticity_feature_values() -> None:
