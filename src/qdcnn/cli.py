@@ -570,6 +570,7 @@ def detect_lanes_cmd(
     from qdcnn.experiments.shadow_batch import plan_detection
     from qdcnn.pipeline import process_frame
     from qdcnn.quantum.sampling import as_generator
+    from qdcnn.vision.grouping import mode_columns
     from qdcnn.vision.overlays import draw_lane_overlay
 
     try:
@@ -590,6 +591,7 @@ def detect_lanes_cmd(
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = as_generator(seed)
     cfg, grouping = direction_model.config, direction_model.grouping
+    columns = mode_columns(cfg.grouping.features, cfg.grouping.extra_features)
 
     def work(path: Path) -> dict[str, Any]:
         image = read_image(path)
@@ -600,7 +602,9 @@ def detect_lanes_cmd(
         seconds = time.perf_counter() - t0
         overlay = write_image(
             out_dir / f"{path.stem}_lanes.png",
-            draw_lane_overlay(image, frame.segments, lanes, direction, roi=cfg.lanes.roi),
+            draw_lane_overlay(
+                image, frame.segments, lanes, direction, roi=cfg.lanes.roi, columns=columns
+            ),
         )
         return {
             "file": str(path),

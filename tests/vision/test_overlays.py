@@ -95,3 +95,20 @@ def test_shadow_overlay_errors() -> None:
         draw_shadow_overlay(img, np.zeros((H, W), bool), color=(0, 300, 0))
     with pytest.raises(InputError, match=r"^image: expected a uint8 array, got float64$"):
         draw_shadow_overlay(img.astype(float), np.zeros((H, W), bool))
+
+
+def test_caption_shows_the_chosen_inputs_and_fits_the_frame() -> None:
+    extras = ("vanishing-point-offset", "near-vanishing-point-offset")
+    features = group_segments(SEGMENTS, (H, W), extra_features=extras)
+    names = features.feature_names
+    columns = (names.index("vanishing_point_offset"), names.index("near_vanishing_point_offset"))
+    slopes = draw_lane_overlay(frame(), SEGMENTS, features, roi=None)
+    vps = draw_lane_overlay(frame(), SEGMENTS, features, roi=None, columns=columns)
+    first, second = slice(0, 12), slice(13, 23)  # caption rows: method/status, then inputs
+    np.testing.assert_array_equal(slopes[first], vps[first])
+    assert (slopes[second] != vps[second]).any()
+    # the long names are shrunk to the width instead of running off the frame's edge
+    drawn = np.flatnonzero((vps[second] != 60).any(axis=(0, 2)))
+    assert drawn.size and drawn.max() < W - 2
+    with pytest.raises(ParameterError, match=r"^columns=\(0, 9\) is invalid"):
+        draw_lane_overlay(frame(), SEGMENTS, features, columns=(0, 9))

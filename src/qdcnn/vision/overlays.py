@@ -32,13 +32,15 @@ def draw_lane_overlay(
     *,
     roi: Sequence[tuple[float, float]] | None = LaneConfig().roi,
     scale: int = 1,
+    columns: tuple[int, int] = (0, 1),
 ) -> NDArray[np.uint8]:
     """Draw the lane stage's result on a copy of the frame.
 
     Shows the ROI outline (white), the Hough segments coloured by group (left orange,
     right blue), each group's fitted line ``x = a * y + b`` over the ROI's rows (yellow,
     cyan), for image-split the vertical split line (thin green) and the centre line
-    between the two fitted lines (green), and a caption: method, status, the two slopes
+    between the two fitted lines (green), and a caption: method, status, the classifier's
+    two inputs (``columns`` of ``features.features``; the paper's two slopes by default)
     and ``direction`` when given.
 
     Parameters
@@ -55,6 +57,9 @@ def draw_lane_overlay(
         Relative ROI polygon to outline; None draws none.
     scale : int
         Integer upscaling of the output (1 to 8) so small frames stay legible.
+    columns : (int, int)
+        Entries of ``features.features`` the caption shows, by name (the feature mode's
+        columns, :func:`qdcnn.vision.grouping.mode_columns`).
 
     Returns
     -------
@@ -112,24 +117,35 @@ def draw_lane_overlay(
     if features.method == "image-split":
         draw_fit(features.middle_line, MIDDLE_COLOUR)
 
-    slopes = ", ".join("-" if np.isnan(v) else f"{v:+.2f}" for v in features.features[:2])
-    caption = f"{features.method} {features.status} [{slopes}]"
-    font_scale = 0.33 * scale
-    cv2.putText(
-        canvas,
-        caption,
-        pt(3, 10),
-        cv2.FONT_HERSHEY_SIMPLEX,
-        font_scale,
-        TEXT_COLOUR,
-        max(1, scale // 2),
-        cv2.LINE_AA,
+    if len(columns) != 2 or not all(0 <= c < len(features.features) for c in columns):
+        raise ParameterError("columns", columns, f"two indices below {len(features.features)}")
+    names = features.feature_names
+    inputs = "  ".join(
+        (names[c] if c < len(names) else f"feature {c}")
+        + (" -" if np.isnan(features.features[c]) else f" {features.features[c]:+.2f}")
+        for c in columns
     )
+    font_scale = 0.33 * scale
+    thickness = max(1, scale // 2)
+    for text, row in ((f"{features.method} {features.status}", 10), (inputs, 20)):
+        # long feature names shrink to the frame's width rather than run off it
+        width = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font_scale, thickness)[0][0]
+        fit = min(font_scale, font_scale * (canvas.shape[1] - 6 * scale) / max(width, 1))
+        cv2.putText(
+            canvas,
+            text,
+            pt(3, row),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            fit,
+            TEXT_COLOUR,
+            thickness,
+            cv2.LINE_AA,
+        )
     if direction is not None:
         cv2.putText(
             canvas,
             str(direction),
-            pt(3, 24),
+            pt(3, 34),
             cv2.FONT_HERSHEY_SIMPLEX,
             1.4 * font_scale,
             TEXT_COLOUR,
