@@ -61,12 +61,15 @@ def fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
     return out
 
 
-def _evolve(circuit: CircuitBatch) -> NDArray[Any]:
-    """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX)."""
+def _evolve(circuit: CircuitBatch, fused: list[Gate] | None = None) -> NDArray[Any]:
+    """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX).
+
+    ``fused`` is ``fuse_rotations(circuit.gates)`` when the caller already has it.
+    """
     n = circuit.num_qubits
     state: NDArray[Any] = np.zeros((circuit.batch_size, 2**n))
     state[:, 0] = 1.0
-    for g in fuse_rotations(circuit.gates):
+    for g in fuse_rotations(circuit.gates) if fused is None else fused:
         if g.name == "cx":
             state = state[:, _cx_permutation(n, *g.qubits)]
         else:
@@ -137,17 +140,16 @@ def apply_readout_error(
     return t.reshape(probs.shape)
 
 
-def _single_rotation(circuit: CircuitBatch) -> NDArray[np.float64] | None:
-    """Probabilities of a one-qubit circuit that fuses to one ``RY(t)``, else ``None``.
+def _single_rotation(circuit: CircuitBatch, gates: list[Gate]) -> NDArray[np.float64] | None:
+    """Probabilities of a one-qubit circuit whose fused ``gates`` are one ``RY(t)``, or ``None``.
 
     ``RY(t)|0> = (cos t/2, sin t/2)``, so ``P(1) = sin^2(t/2) = (1 - cos t) / 2``: the
     statevector result with one cosine per circuit instead of a cosine, a sine and a
     2x2 product (the UU-dagger circuit of every image block takes this path).
     """
-    if circuit.num_qubits != 1:
+    if circuit.num_qubits != 1 or len(gates) != 1:
         return None
-    gates = fuse_rotations(circuit.gates)
-    if len(gates) != 1 or gates[0].name != "ry" or gates[0].angle is None:
+    if gates[0].name != "ry" or gates[0].angle is None:
         return None
     half_cos = np.cos(gates[0].angle)
     half_cos *= 0.5
@@ -164,10 +166,11 @@ def probabilities(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDAr
     density-matrix simulator, then the readout error.
     """
     if noise is None or noise.is_ideal:
-        single = _single_rotation(circuit)
+        fused = fuse_rotations(circuit.gates)
+        single = _single_rotation(circuit, fused)
         if single is not None:
             return single
-        psi = _evolve(circuit)
+        psi = _evolve(circuit, fused)
         probs = np.abs(psi) ** 2 if np.iscomplexobj(psi) else psi * psi
     else:
         rho = density_matrix(circuit, noise)
