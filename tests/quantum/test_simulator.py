@@ -7,7 +7,8 @@ import pytest
 
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBuilder, uu_dagger_circuit, vqc_circuit
-from qdcnn.quantum.simulator import density_matrix, probabilities, statevector
+from qdcnn.quantum.simulator import density_matrix, probabilities, statevector, unitary
+from qdcnn.quantum.vqc import feature_map_states
 
 qiskit = pytest.importorskip("qiskit")
 pytest.importorskip("qiskit_aer")
@@ -128,3 +129,23 @@ def test_probabilities_sum_to_one_and_qubit0_is_lsb() -> None:
 def test_builder_rejects_bad_gates(call, message: str) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(ParameterError, match=message.replace("(", r"\(").replace(")", r"\)")):
         call(CircuitBuilder(2, 3))
+
+
+def test_unitary_columns_are_the_states_from_each_basis_state(rng: np.random.Generator) -> None:
+    from qiskit.quantum_info import Operator
+
+    circ = random_circuit(rng, 3).build("random")
+    u = unitary(circ)
+    assert u.shape == (3, 4, 4)
+    np.testing.assert_allclose(u[:, :, 0], statevector(circ), atol=1e-12)
+    for i in range(3):
+        np.testing.assert_allclose(u[i], Operator(to_qiskit(circ, i)).data, atol=1e-12)
+
+
+def test_feature_map_states_equal_qiskit(rng: np.random.Generator) -> None:
+    x = rng.uniform(-1, 4, (6, 2))
+    fm = zz_feature_map(2, reps=2)
+    ours = feature_map_states(x, 2)
+    for i in range(len(x)):
+        bound = fm.assign_parameters(dict(zip(fm.parameters, x[i], strict=True)))
+        np.testing.assert_allclose(ours[i], Statevector(bound).data, atol=1e-12)

@@ -10,11 +10,16 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from qdcnn._optional import HAS_AER, HAS_QISKIT_ML
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.quantum.circuits import CircuitBuilder, vqc_circuit, zz_feature_map
+from qdcnn.quantum.execute import run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.simulator import statevector
 from qdcnn.quantum.vqc import (
     VQCClassifier,
+    ansatz_probabilities,
     basis_probabilities,
     class_probabilities,
+    feature_map_states,
     interpret_matrix,
     loss_value,
     make_sampler_qnn,
@@ -265,3 +270,49 @@ def test_plot_objective_draws_the_history(rng: np.random.Generator) -> None:
     np.testing.assert_array_equal(line.get_xdata(), np.arange(1, 8))
     np.testing.assert_array_equal(line.get_ydata(), clf.objective_history_)
     assert ax.get_xlabel() == "objective evaluation (COBYLA)"
+
+
+@pytest.mark.parametrize("reps", [1, 2, 3])
+def test_feature_map_states_equal_the_gate_by_gate_simulation(
+    rng: np.random.Generator, reps: int
+) -> None:
+    x = rng.uniform(-1, 4, (40, 2))
+    gates = statevector(zz_feature_map(CircuitBuilder(2, 40), x, reps).build("fm"))
+    np.testing.assert_allclose(feature_map_states(x, reps), gates, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("fm_reps", "ansatz_reps"), [(2, 1), (1, 0), (3, 2)])
+@pytest.mark.parametrize("per_sample_weights", [False, True])
+def test_split_vqc_probabilities_equal_the_whole_circuit(
+    rng: np.random.Generator, fm_reps: int, ansatz_reps: int, per_sample_weights: bool
+) -> None:
+    x = rng.uniform(-1, 4, (30, 2))
+    n_w = 2 * (ansatz_reps + 1)
+    w = rng.uniform(-np.pi, 2 * np.pi, (30, n_w) if per_sample_weights else n_w)
+    whole = run_probabilities(vqc_circuit(x, w, feature_map_reps=fm_reps, ansatz_reps=ansatz_reps))
+    split = ansatz_probabilities(feature_map_states(x, fm_reps), w, ansatz_reps)
+    np.testing.assert_allclose(split, whole, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        basis_probabilities(x, w, feature_map_reps=fm_reps, ansatz_reps=ansatz_reps),
+        whole,
+        rtol=0,
+        atol=1e-12,
+    )
+
+
+def test_split_shots_have_the_circuit_statistics(rng: np.random.Generator) -> None:
+    x = rng.uniform(0, 3, (4000, 2))
+    w = rng.uniform(-np.pi, np.pi, 4)
+    exact = basis_probabilities(x, w)
+    est = basis_probabilities(x, w, shots=256, rng=5)
+    np.testing.assert_allclose(est * 256, np.round(est * 256), atol=1e-9)
+    # the mean estimate of each basis state is unbiased within 4 standard errors
+    se = np.sqrt((exact * (1 - exact)).sum(axis=0) / 256) / x.shape[0]
+    assert (np.abs((est - exact).mean(axis=0)) < 4 * se).all()
+
+
+def test_feature_map_states_check_their_input() -> None:
+    with pytest.raises(ParameterError, match="two features per sample"):
+        feature_map_states(np.zeros((3, 3)))
+    with pytest.raises(ParameterError, match="feature_map_reps=0 is invalid"):
+        feature_map_states(np.zeros((3, 2)), 0)

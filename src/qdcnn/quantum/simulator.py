@@ -104,6 +104,19 @@ def _gate_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
     return embed(g.matrix(), g.qubits[0], n)
 
 
+def unitary(circuit: CircuitBatch) -> NDArray[np.complex128]:
+    """The unitary of every circuit, shape ``(K, 2**n, 2**n)``.
+
+    ``K`` is 1 when no gate angle varies over the batch (one shared unitary),
+    else the batch size. Column ``j`` is the final state from basis state ``j``.
+    """
+    n = circuit.num_qubits
+    u = np.eye(2**n, dtype=np.complex128)[None]
+    for g in circuit.gates:
+        u = _gate_unitary(g, n) @ u
+    return u
+
+
 def density_matrix(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDArray[np.complex128]:
     """Final density matrices, shape ``(B, 2**n, 2**n)``, with optional gate noise.
 

@@ -6,8 +6,12 @@ Paper Sec. II-C and Alg. 3 (NOTES 6): the two lane slopes enter a ZZ feature map
 with a callback that records the objective at every evaluation.
 
 Circuit and simulation. :func:`qdcnn.quantum.circuits.vqc_circuit` builds all samples'
-circuits as one batch; every objective evaluation is one
-:func:`qdcnn.quantum.execute.run_probabilities` call for the whole training set.
+circuits as one batch (for Aer, noise and export). Noise-free NumPy runs split the circuit
+at the feature map: its states follow in closed form (:func:`feature_map_states`, two
+Hadamard layers and diagonal phases per repetition) and the data-free ansatz is one 4x4
+unitary (:func:`ansatz_unitary`), so training computes the feature-map states once and
+every objective evaluation is one ``(N, 4) x (4, 4)`` product; both are tested against
+the gate-by-gate simulator, Aer and qiskit-machine-learning.
 
 Classes from four basis states (``interpret``). The measured basis index ``k`` (qubit 0
 the least significant bit, as in Qiskit) maps to a class; a class's probability is the
@@ -77,6 +81,7 @@ References
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -88,7 +93,7 @@ from sklearn.utils.validation import check_is_fitted
 from qdcnn._optional import require
 from qdcnn.config import VQCConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.circuits import vqc_circuit
+from qdcnn.quantum.circuits import CircuitBuilder, real_amplitudes, vqc_circuit
 from qdcnn.quantum.direction import (
     N_CLASSES,
     check_features,
@@ -99,6 +104,8 @@ from qdcnn.quantum.direction import (
 )
 from qdcnn.quantum.execute import check_backend, run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.sampling import check_shots, sample_probabilities
+from qdcnn.quantum.simulator import unitary
 
 INTERPRETS: dict[str, tuple[int, int, int, int]] = {
     "mod3": (0, 1, 2, 0),
@@ -167,10 +174,71 @@ def basis_probabilities(
     ndarray, shape (N, 4)
         Index = basis state, qubit 0 the least significant bit.
     """
+    if backend == "numpy" and (noise is None or noise.is_ideal):
+        if shots is not None:
+            check_shots(shots)
+        states = feature_map_states(angles, feature_map_reps)
+        exact = ansatz_probabilities(states, weights, ansatz_reps)
+        return exact if shots is None else sample_probabilities(exact, shots, rng)
     circuit = vqc_circuit(
         angles, weights, feature_map_reps=feature_map_reps, ansatz_reps=ansatz_reps
     )
     return run_probabilities(circuit, shots=shots, noise=noise, backend=backend, rng=rng)
+
+
+_HADAMARD_2 = 0.5 * np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]])
+_BIT0 = np.array([0.0, 1.0, 0.0, 1.0])  # qubit 0 of basis index k (the least significant bit)
+_BIT1 = np.array([0.0, 0.0, 1.0, 1.0])
+
+
+def feature_map_states(angles: ArrayLike, reps: int = 2) -> NDArray[np.complex128]:
+    """Statevectors ``(N, 4)`` after ``zz_feature_map(2, reps)`` from ``|00>``.
+
+    Each repetition is ``H`` on both qubits, then gates that are all diagonal:
+    ``P(2 x_0)`` on qubit 0, ``P(2 x_1)`` on qubit 1 and ``CX P(phi) CX`` with
+    ``phi = 2 (pi - x_0)(pi - x_1)``, which gives the phase ``phi`` exactly when the
+    two qubits differ. So basis state ``k = (b_1 b_0)`` gains the phase
+    ``2 x_0 b_0 + 2 x_1 b_1 + phi (b_0 xor b_1)`` per repetition, with one 4x4
+    Hadamard product in between (the same result as simulating the gates one by one).
+    """
+    x = np.atleast_2d(np.asarray(angles, dtype=np.float64))
+    if x.ndim != 2 or x.shape[1] != 2:
+        raise ParameterError("x", f"shape {np.shape(angles)}", "two features per sample, (B, 2)")
+    reps = _check_int("feature_map_reps", reps, 1)
+    pair = 2.0 * (np.pi - x[:, :1]) * (np.pi - x[:, 1:])
+    phase = np.exp(1j * (2.0 * x[:, :1] * _BIT0 + 2.0 * x[:, 1:] * _BIT1 + pair * (_BIT0 != _BIT1)))
+    state = 0.5 * phase  # the first H layer takes |00> to the uniform superposition
+    for _ in range(reps - 1):
+        state = (state @ _HADAMARD_2) * phase
+    return state
+
+
+def ansatz_unitary(weights: ArrayLike, reps: int = 1) -> NDArray[np.complex128]:
+    """The unitary of ``real_amplitudes(2, reps)``: ``(1, 4, 4)``, or ``(N, 4, 4)`` for
+    per-sample weights of shape ``(N, 2 (reps + 1))``."""
+    w = np.asarray(weights, dtype=np.float64)
+    reps = _check_int("ansatz_reps", reps, 0)
+    if w.ndim == 1:  # a trained model's weights: the same unitary for every prediction
+        return _shared_ansatz_unitary(tuple(w.tolist()), reps)
+    return unitary(real_amplitudes(CircuitBuilder(2, w.shape[0]), w, reps).build("ansatz"))
+
+
+@lru_cache(maxsize=64)
+def _shared_ansatz_unitary(weights: tuple[float, ...], reps: int) -> NDArray[np.complex128]:
+    u = unitary(real_amplitudes(CircuitBuilder(2, 1), np.array(weights), reps).build("ansatz"))
+    u.setflags(write=False)
+    return u
+
+
+def ansatz_probabilities(
+    states: NDArray[np.complex128], weights: ArrayLike, reps: int = 1
+) -> NDArray[np.float64]:
+    """Basis probabilities ``(N, 4)`` of ``states`` (feature-map outputs) after the ansatz."""
+    u = ansatz_unitary(weights, reps)
+    final = states @ u[0].T if u.shape[0] == 1 else np.einsum("bij,bj->bi", u, states)
+    probs = final.real**2 + final.imag**2
+    out: NDArray[np.float64] = probs / probs.sum(axis=1, keepdims=True)
+    return out
 
 
 def class_probabilities(
@@ -462,18 +530,26 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
     ) -> tuple[NDArray[np.float64], float]:
         gen = np.random.default_rng(self.seed)
         table = interpret_matrix(self.interpret)
+        split = self.backend == "numpy" and (self.train_noise is None or self.train_noise.is_ideal)
+        # the feature map does not depend on the weights: its states are computed once
+        states = feature_map_states(angles, self.feature_map_reps) if split else None
 
         def objective(weights: NDArray[np.float64]) -> float:
-            probs = basis_probabilities(
-                angles,
-                weights,
-                feature_map_reps=self.feature_map_reps,
-                ansatz_reps=self.ansatz_reps,
-                shots=self.shots,
-                noise=self.train_noise,
-                backend=self.backend,
-                rng=gen,
-            )
+            if states is not None:
+                probs = ansatz_probabilities(states, weights, self.ansatz_reps)
+                if self.shots is not None:
+                    probs = sample_probabilities(probs, self.shots, gen)
+            else:
+                probs = basis_probabilities(
+                    angles,
+                    weights,
+                    feature_map_reps=self.feature_map_reps,
+                    ansatz_reps=self.ansatz_reps,
+                    shots=self.shots,
+                    noise=self.train_noise,
+                    backend=self.backend,
+                    rng=gen,
+                )
             value = loss_value(probs @ table, onehot, self.loss)
             self.objective_history_.append(value)
             self.weight_history_.append(np.array(weights, dtype=np.float64))
@@ -543,7 +619,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
                 shots=self.shots,
                 noise=noise,
                 backend=self.backend,
-                rng=np.random.default_rng([self.seed, 1]),
+                rng=None if self.shots is None else np.random.default_rng([self.seed, 1]),
             )
         return out
 
