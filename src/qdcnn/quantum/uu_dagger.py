@@ -13,8 +13,6 @@ With a fixed centroid the test is a band threshold on the value:
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -98,7 +96,6 @@ def overlap_fidelity(
     return amp
 
 
-@lru_cache(maxsize=16)
 def ry_state_table(
     denominator: int, scale: float = VALUE_SCALE
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -112,10 +109,7 @@ def ry_state_table(
     if denominator < 1 or not float(scale).is_integer() or scale < 1:
         raise ParameterError("denominator/scale", (denominator, scale), "positive integers")
     half = value_to_angle(np.arange(int(scale) * denominator + 1) / denominator, scale) / 2.0
-    cos_half, sin_half = np.cos(half), np.sin(half)
-    cos_half.setflags(write=False)
-    sin_half.setflags(write=False)
-    return cos_half, sin_half
+    return np.cos(half), np.sin(half)
 
 
 def band_halfwidth(threshold: float) -> float:

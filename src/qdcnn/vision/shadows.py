@@ -117,8 +117,9 @@ class BlockGrid:
     corner_cache: dict[tuple[int, int], tuple[NDArray[np.intp], NDArray[np.float64]]] = field(
         default_factory=dict, compare=False, repr=False
     )
-    #: (table width, downsample) -> per-block offsets into the joined RY state tables
-    state_cache: dict[tuple[int, int], StateLookup | None] = field(
+    #: (table width, downsample) -> block sizes and per-block offsets into their joined
+    #: RY state tables (None: too large for tables)
+    state_cache: dict[tuple[int, int], tuple[tuple[int, ...], NDArray[np.intp]] | None] = field(
         default_factory=dict, compare=False, repr=False
     )
 
@@ -227,29 +228,45 @@ class StateLookup:
     sin_half: NDArray[np.float64]
 
 
-#: Largest joined state table (entries) worth caching; bigger blocks use one cosine each.
+#: Largest joined state table (entries, 16 bytes each) worth building; bigger blocks (images
+#: of several megapixels) use one cosine per block.
 MAX_STATE_TABLE = 1 << 18
 
 
 def state_lookup(geometry: BlockGrid, width: int, downsample: int) -> StateLookup | None:
-    """Cached :class:`StateLookup` for ``uint8`` values of this width, or ``None`` if too large."""
+    """:class:`StateLookup` for ``uint8`` values of this width, or ``None`` if too large.
+
+    The grid keeps only its per-block offsets; the tables are shared by every grid with
+    the same block sizes and only the most recent few are kept, so memory stays bounded
+    however many image sizes pass through.
+    """
     key = (width, downsample)
-    if key in geometry.state_cache:
-        return geometry.state_cache[key]
-    _, area = _cached_corners(geometry, width, downsample)
-    sizes, inverse = np.unique(area.astype(np.intp), return_inverse=True)
-    lengths = int(VALUE_SCALE) * sizes + 1
-    lookup = None
-    if int(lengths.sum()) <= MAX_STATE_TABLE:
-        tables = [ry_state_table(int(n)) for n in sizes]
-        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.intp)
-        lookup = StateLookup(
-            starts[inverse.ravel()],
-            np.concatenate([t[0] for t in tables]),
-            np.concatenate([t[1] for t in tables]),
-        )
-    geometry.state_cache[key] = lookup
-    return lookup
+    if key not in geometry.state_cache:
+        _, area = _cached_corners(geometry, width, downsample)
+        sizes, inverse = np.unique(area.astype(np.intp), return_inverse=True)
+        lengths = int(VALUE_SCALE) * sizes + 1
+        entry = None
+        if int(lengths.sum()) <= MAX_STATE_TABLE:
+            starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.intp)
+            offsets = starts[inverse.ravel()]
+            offsets.setflags(write=False)
+            entry = (tuple(int(n) for n in sizes), offsets)
+        geometry.state_cache[key] = entry
+    entry = geometry.state_cache[key]
+    if entry is None:
+        return None
+    cos_half, sin_half = _joined_state_tables(entry[0])
+    return StateLookup(entry[1], cos_half, sin_half)
+
+
+@lru_cache(maxsize=4)
+def _joined_state_tables(sizes: tuple[int, ...]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    tables = [ry_state_table(n) for n in sizes]
+    cos_half = np.concatenate([t[0] for t in tables])
+    sin_half = np.concatenate([t[1] for t in tables])
+    cos_half.setflags(write=False)
+    sin_half.setflags(write=False)
+    return cos_half, sin_half
 
 
 def expand_blocks(block_mask: NDArray[np.bool_], geometry: BlockGrid) -> NDArray[np.bool_]:
