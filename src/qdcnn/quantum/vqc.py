@@ -174,7 +174,7 @@ def basis_probabilities(
     ndarray, shape (N, 4)
         Index = basis state, qubit 0 the least significant bit.
     """
-    if backend == "numpy" and (noise is None or noise.is_ideal):
+    if _runs_split(backend, noise):
         if shots is not None:
             check_shots(shots)
         states = feature_map_states(angles, feature_map_reps)
@@ -184,6 +184,11 @@ def basis_probabilities(
         angles, weights, feature_map_reps=feature_map_reps, ansatz_reps=ansatz_reps
     )
     return run_probabilities(circuit, shots=shots, noise=noise, backend=backend, rng=rng)
+
+
+def _runs_split(backend: str, noise: NoiseSpec | None) -> bool:
+    """Whether the split simulation (feature-map states, ansatz unitary) applies."""
+    return backend == "numpy" and (noise is None or noise.is_ideal)
 
 
 _HADAMARD_2 = 0.5 * np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]])
@@ -530,8 +535,8 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
     ) -> tuple[NDArray[np.float64], float]:
         gen = np.random.default_rng(self.seed)
         table = interpret_matrix(self.interpret)
-        split = self.backend == "numpy" and (self.train_noise is None or self.train_noise.is_ideal)
         # the feature map does not depend on the weights: its states are computed once
+        split = _runs_split(self.backend, self.train_noise)
         states = feature_map_states(angles, self.feature_map_reps) if split else None
 
         def objective(weights: NDArray[np.float64]) -> float:
