@@ -13,9 +13,10 @@ from qdcnn.data.images import write_image
 from qdcnn.data.synthetic import generate_drive
 from qdcnn.data.writers import write_udacity
 from qdcnn.errors import ParameterError
+from qdcnn.experiments import features as features_module
 from qdcnn.experiments.datasets import load_frameset, parse_spec
 from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.features import compute_features
+from qdcnn.experiments.features import code_fingerprint, compute_features
 from qdcnn.pipeline import process_frame
 
 
@@ -89,3 +90,21 @@ def test_feature_modes_with_two_column_extras_fill_every_column(
         np.testing.assert_array_equal(feats[i], direct.features)
     ok = table.status["image-split"] == "ok"
     assert ok.any() and np.isfinite(feats[ok]).all()
+
+
+def test_a_code_change_is_a_cache_miss(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    package = tmp_path / "pkg"
+    (package / "vision").mkdir(parents=True)
+    (package / "vision" / "lanes.py").write_text("THRESHOLD = 50\n")
+    before = code_fingerprint(package)
+    (package / "vision" / "lanes.py").write_text("THRESHOLD = 51\n")
+    code_fingerprint.cache_clear()
+    assert code_fingerprint(package) != before
+    code_fingerprint.cache_clear()
+    # and the features cache obeys it: the same data and settings under other code miss
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    fs = load_frameset("synthetic:track1:10", seed=2)
+    assert not compute_features(fs, default_config(), ("image-split",)).cached
+    assert compute_features(fs, default_config(), ("image-split",)).cached
+    monkeypatch.setattr(features_module, "code_fingerprint", lambda: "other code")
+    assert not compute_features(fs, default_config(), ("image-split",)).cached

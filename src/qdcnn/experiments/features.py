@@ -2,9 +2,10 @@
 
 The three groupings share one pass of shadow removal, edge detection and Hough
 per frame. Unreadable frames are skipped and listed. Results are cached under
-``$QDCNN_CACHE`` (default ``~/.cache/qdcnn``) keyed by the data's fingerprint
-and the pipeline settings, so a second evaluation or a noise sweep of the same
-data starts at once.
+``$QDCNN_CACHE`` (default ``~/.cache/qdcnn``) keyed by the data's fingerprint,
+the pipeline settings and the package's source code, so a second evaluation or a
+noise sweep of the same data starts at once, and a code change never reuses
+features the old code computed.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +66,20 @@ def cache_dir() -> Path:
     return Path(os.environ.get("QDCNN_CACHE", Path.home() / ".cache" / "qdcnn"))
 
 
+@cache
+def code_fingerprint(root: Path = Path(__file__).resolve().parents[1]) -> str:
+    """Hash of every ``.py`` file of the package under ``root``.
+
+    Part of the cache key, so features computed by another version of the code,
+    released or not, are never read back.
+    """
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:24]
+
+
 def _cache_key(frames: FrameSet, config: PipelineConfig, groupings: Sequence[str]) -> str:
     payload = json.dumps(
         {
@@ -71,6 +87,7 @@ def _cache_key(frames: FrameSet, config: PipelineConfig, groupings: Sequence[str
             "config": config.to_dict(),
             "groupings": list(groupings),
             "version": __version__,
+            "code": code_fingerprint(),
         },
         sort_keys=True,
         default=str,
