@@ -228,6 +228,14 @@ def real_amplitudes(
     return builder
 
 
+def feature_pairs(x: ArrayLike) -> NDArray[np.float64]:
+    """The VQC's input as a float array of shape ``(B, 2)``; one pair may be given flat."""
+    xa = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    if xa.ndim != 2 or xa.shape[1] != 2:
+        raise ParameterError("x", f"shape {np.shape(x)}", "two features per sample, shape (B, 2)")
+    return xa
+
+
 def vqc_circuit(
     x: ArrayLike, weights: ArrayLike, *, feature_map_reps: int = 2, ansatz_reps: int = 1
 ) -> CircuitBatch:
@@ -240,9 +248,7 @@ def vqc_circuit(
     weights : array_like, shape (2 (ansatz_reps + 1),) or (B, 2 (ansatz_reps + 1))
         Ansatz angles in Qiskit's parameter order.
     """
-    xa = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    if xa.ndim != 2 or xa.shape[1] != 2:
-        raise ParameterError("x", f"shape {np.shape(x)}", "two features per sample, shape (B, 2)")
+    xa = feature_pairs(x)
     builder = CircuitBuilder(2, xa.shape[0])
     zz_feature_map(builder, xa, feature_map_reps)
     real_amplitudes(builder, np.asarray(weights, dtype=np.float64), ansatz_reps)

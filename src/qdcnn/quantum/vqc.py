@@ -93,7 +93,7 @@ from sklearn.utils.validation import check_is_fitted
 from qdcnn._optional import require
 from qdcnn.config import VQCConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.circuits import CircuitBuilder, real_amplitudes, vqc_circuit
+from qdcnn.quantum.circuits import CircuitBuilder, feature_pairs, real_amplitudes, vqc_circuit
 from qdcnn.quantum.direction import (
     N_CLASSES,
     check_features,
@@ -178,8 +178,7 @@ def basis_probabilities(
         if shots is not None:
             check_shots(shots)
         states = feature_map_states(angles, feature_map_reps)
-        exact = ansatz_probabilities(states, weights, ansatz_reps)
-        return exact if shots is None else sample_probabilities(exact, shots, rng)
+        return _split_probabilities(states, weights, ansatz_reps, shots, rng)
     circuit = vqc_circuit(
         angles, weights, feature_map_reps=feature_map_reps, ansatz_reps=ansatz_reps
     )
@@ -189,6 +188,18 @@ def basis_probabilities(
 def _runs_split(backend: str, noise: NoiseSpec | None) -> bool:
     """Whether the split simulation (feature-map states, ansatz unitary) applies."""
     return backend == "numpy" and (noise is None or noise.is_ideal)
+
+
+def _split_probabilities(
+    states: NDArray[np.complex128],
+    weights: ArrayLike,
+    ansatz_reps: int,
+    shots: int | None,
+    rng: int | np.random.Generator | None,
+) -> NDArray[np.float64]:
+    """Basis probabilities from feature-map states: exact, or estimated from ``shots``."""
+    exact = ansatz_probabilities(states, weights, ansatz_reps)
+    return exact if shots is None else sample_probabilities(exact, shots, rng)
 
 
 _HADAMARD_2 = 0.5 * np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]])
@@ -206,9 +217,7 @@ def feature_map_states(angles: ArrayLike, reps: int = 2) -> NDArray[np.complex12
     ``2 x_0 b_0 + 2 x_1 b_1 + phi (b_0 xor b_1)`` per repetition, with one 4x4
     Hadamard product in between (the same result as simulating the gates one by one).
     """
-    x = np.atleast_2d(np.asarray(angles, dtype=np.float64))
-    if x.ndim != 2 or x.shape[1] != 2:
-        raise ParameterError("x", f"shape {np.shape(angles)}", "two features per sample, (B, 2)")
+    x = feature_pairs(angles)
     reps = _check_int("feature_map_reps", reps, 1)
     pair = 2.0 * (np.pi - x[:, :1]) * (np.pi - x[:, 1:])
     phase = np.exp(1j * (2.0 * x[:, :1] * _BIT0 + 2.0 * x[:, 1:] * _BIT1 + pair * (_BIT0 != _BIT1)))
@@ -225,14 +234,19 @@ def ansatz_unitary(weights: ArrayLike, reps: int = 1) -> NDArray[np.complex128]:
     reps = _check_int("ansatz_reps", reps, 0)
     if w.ndim == 1:  # a trained model's weights: the same unitary for every prediction
         return _shared_ansatz_unitary(tuple(w.tolist()), reps)
-    return unitary(real_amplitudes(CircuitBuilder(2, w.shape[0]), w, reps).build("ansatz"))
+    return _real_amplitudes_unitary(w, reps)
 
 
 @lru_cache(maxsize=64)
 def _shared_ansatz_unitary(weights: tuple[float, ...], reps: int) -> NDArray[np.complex128]:
-    u = unitary(real_amplitudes(CircuitBuilder(2, 1), np.array(weights), reps).build("ansatz"))
+    u = _real_amplitudes_unitary(np.array(weights), reps)
     u.setflags(write=False)
     return u
+
+
+def _real_amplitudes_unitary(w: NDArray[np.float64], reps: int) -> NDArray[np.complex128]:
+    builder = CircuitBuilder(2, w.shape[0] if w.ndim == 2 else 1)
+    return unitary(real_amplitudes(builder, w, reps).build("ansatz"))
 
 
 def ansatz_probabilities(
@@ -541,9 +555,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
 
         def objective(weights: NDArray[np.float64]) -> float:
             if states is not None:
-                probs = ansatz_probabilities(states, weights, self.ansatz_reps)
-                if self.shots is not None:
-                    probs = sample_probabilities(probs, self.shots, gen)
+                probs = _split_probabilities(states, weights, self.ansatz_reps, self.shots, gen)
             else:
                 probs = basis_probabilities(
                     angles,
