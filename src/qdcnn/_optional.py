@@ -19,8 +19,12 @@ _EXTRA_OF = {
     "qiskit_aer": "quantum",
     "qiskit_machine_learning": "quantum",
     "qiskit_qasm3_import": "quantum",
+    "qiskit_ibm_runtime": "quantum",
     "torch": "dnn",
+    "safetensors": "dnn",
+    "av": "video",
     "dask": "dask",
+    "distributed": "dask",
 }
 
 
