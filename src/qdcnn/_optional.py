@@ -21,7 +21,6 @@ _EXTRA_OF = {
     "qiskit_qasm3_import": "quantum",
     "qiskit_ibm_runtime": "quantum",
     "torch": "dnn",
-    "safetensors": "dnn",
     "av": "video",
     "dask": "dask",
     "distributed": "dask",

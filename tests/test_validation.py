@@ -1,0 +1,70 @@
+"""The shared checks: one error type and message form per mistake."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from qdcnn._fileio import atomic_write_bytes
+from qdcnn._validation import (
+    check_bool,
+    check_choice,
+    check_float,
+    check_int,
+    check_odd,
+    check_optional_shots,
+    check_probability,
+    check_seed,
+)
+from qdcnn.errors import InputError, ParameterError
+
+
+@pytest.mark.parametrize("bad", [True, 1.0, "3", None, 1, 101])
+def test_check_int_refuses_non_integers_and_out_of_range(bad):
+    with pytest.raises(ParameterError, match=r"n=.* is invalid: an integer in \[2, 100\]"):
+        check_int("n", bad, 2, 100)
+
+
+def test_check_int_accepts_numpy_integers():
+    assert check_int("n", np.int64(7), 0) == 7 and type(check_int("n", np.int64(7), 0)) is int
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, False, "0.5", 0.0])
+def test_check_float_open_interval(bad):
+    with pytest.raises(ParameterError, match=r"a finite number in \(0, 1\]"):
+        check_float("x", bad, 0.0, 1.0, open_lo=True)
+
+
+def test_other_checks():
+    assert check_probability("p", 1) == 1.0
+    with pytest.raises(ParameterError, match="a probability"):
+        check_probability("p", 1.5)
+    with pytest.raises(ParameterError, match="True or False"):
+        check_bool("flag", 1)
+    assert check_seed("seed", 2**32 - 1) == 2**32 - 1
+    with pytest.raises(ParameterError):
+        check_seed("seed", -1)
+    with pytest.raises(ParameterError, match="one of 'a', 'b'"):
+        check_choice("c", "z", ("a", "b"))
+    with pytest.raises(ParameterError, match="odd"):
+        check_odd("k", 4)
+    assert check_optional_shots(None) is None
+    with pytest.raises(ParameterError, match=r"shots=1e\+21"):
+        check_optional_shots(1e21)
+
+
+def test_atomic_write_replaces_a_symlink_not_its_target(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep")
+    link = tmp_path / "out.txt"
+    link.symlink_to(victim)
+    atomic_write_bytes(link, b"new")
+    assert victim.read_text() == "keep"
+    assert not link.is_symlink() and link.read_bytes() == b"new"
+
+
+def test_atomic_write_into_a_directory_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="is a directory"):
+        atomic_write_bytes(tmp_path, b"x")
