@@ -39,10 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn.data.frames import stack_images
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.experiments.datasets import load_frameset
 from qdcnn.experiments.evaluate import contiguous_folds, majority_accuracy
-from qdcnn.experiments.evaluate_dnn import evaluate_cnn, load_images
+from qdcnn.experiments.evaluate_dnn import evaluate_cnn
 from qdcnn.models.training import CNNDirectionClassifier, inference_fps
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -69,7 +70,7 @@ def dev_part(
 ) -> dict[str, Any]:
     spec = datasets.get(args.dev_data, args.dev_data)
     frames = load_frameset(spec, seed=args.seed)
-    images, readable, _ = load_images(frames)
+    images, readable, _ = stack_images(frames)
     labels = frames.labels()[readable]
     images = images[readable]
     folds = contiguous_folds(len(labels), args.folds, args.gap)
@@ -144,7 +145,7 @@ def pilotnet_part(
 def resnet_part(datasets: dict[str, str], args: argparse.Namespace) -> dict[str, Any]:
     name, spec = next(iter(datasets.items()))
     frames = load_frameset(spec, seed=args.seed)
-    images, readable, _ = load_images(frames)
+    images, readable, _ = stack_images(frames)
     labels = frames.labels()[readable]
     images = images[readable]
     idx = np.linspace(0, len(labels) - 1, min(args.resnet_frames, len(labels))).astype(int)
@@ -190,7 +191,7 @@ def resnet_one_fold(datasets: dict[str, str], args: argparse.Namespace) -> dict[
     """ResNet-50 on the last of the contiguous folds only, for a few epochs."""
     spec = datasets.get(args.resnet_fold_data, args.resnet_fold_data)
     frames = load_frameset(spec, seed=args.seed)
-    images, readable, _ = load_images(frames)
+    images, readable, _ = stack_images(frames)
     labels = frames.labels()[readable]
     images = images[readable]
     train, test = contiguous_folds(len(labels), args.folds, args.gap)[-1]

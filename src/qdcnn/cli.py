@@ -247,8 +247,8 @@ def train_shadows_cmd(
     algorithm, threshold from the paper's candidates). Several features or centroids
     train the multi-centroid model: one centroid and threshold per feature and component.
     """
+    from qdcnn.data.shadow_set import load_shadow_set
     from qdcnn.errors import ParameterError
-    from qdcnn.experiments.shadow_batch import load_shadow_set
     from qdcnn.vision.shadow_training import train_multi_shadow_model, train_shadow_model
     from qdcnn.vision.shadows import FEATURES
 
@@ -351,9 +351,9 @@ def evaluate_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    from qdcnn.data.frames import load_frameset
     from qdcnn.data.labels import check_labels_usable
     from qdcnn.errors import ParameterError
-    from qdcnn.experiments.datasets import load_frameset
     from qdcnn.experiments.evaluate import (
         ALL_METHODS,
         DNN_METHODS,
@@ -480,7 +480,7 @@ def _has_gpu() -> bool:
 
 def _train_default_direction_model(method: str, seed: int) -> Any:
     """A direction model trained on a synthetic track1 drive, for use without a model file."""
-    from qdcnn.experiments.datasets import load_frameset
+    from qdcnn.data.frames import load_frameset
     from qdcnn.experiments.direction_model import default_config, train_direction_model
     from qdcnn.experiments.evaluate import QUANTUM_METHODS
     from qdcnn.experiments.features import compute_features
@@ -507,8 +507,8 @@ def train_direction_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it."""
+    from qdcnn.data.frames import load_frameset
     from qdcnn.errors import ParameterError
-    from qdcnn.experiments.datasets import load_frameset
     from qdcnn.experiments.direction_model import train_direction_model
     from qdcnn.experiments.evaluate import QUANTUM_METHODS
     from qdcnn.experiments.features import compute_features
@@ -564,8 +564,8 @@ def detect_lanes_cmd(
     Without --model, a model of --method is trained first on a synthetic track1
     drive (300 frames) and the output says so.
     """
+    from qdcnn.batch import run_batch
     from qdcnn.data.images import read_image, write_image
-    from qdcnn.experiments.batch import run_batch
     from qdcnn.experiments.direction_model import DirectionModel
     from qdcnn.experiments.shadow_batch import plan_detection
     from qdcnn.pipeline import process_frame

@@ -206,8 +206,8 @@ def noise_sweep_cmd(
     try:
         if direction:
             assert data is not None
+            from qdcnn.data.frames import load_frameset
             from qdcnn.data.labels import check_labels_usable
-            from qdcnn.experiments.datasets import load_frameset
             from qdcnn.experiments.evaluate import contiguous_folds
             from qdcnn.experiments.features import compute_features
 
@@ -245,7 +245,7 @@ def noise_sweep_cmd(
                 )
         if ns.SHADOW_METHOD in method_list:
             if shadow_set is not None:
-                from qdcnn.experiments.shadow_batch import load_shadow_set
+                from qdcnn.data.shadow_set import load_shadow_set
 
                 images, masks, shadow_failures = load_shadow_set(shadow_set)
                 failures.extend(shadow_failures)

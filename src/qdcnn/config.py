@@ -1,8 +1,14 @@
-"""One configuration object for the whole pipeline; every default is the paper's setting.
+"""One configuration object for the whole pipeline, with named presets.
 
 Each stage reads its own section. Sections are frozen dataclasses, so a changed
 setting is a new object (``dataclasses.replace``) and results can record exactly
-what produced them (:meth:`PipelineConfig.to_dict`).
+what produced them (:meth:`PipelineConfig.to_dict`, :meth:`PipelineConfig.from_dict`).
+
+Presets (:meth:`PipelineConfig.preset`): ``"udacity"`` is the no-argument default, the
+paper's settings with the one change that makes them work on recordings (one smoothing
+pass before Canny instead of 30, see :class:`LaneConfig`); ``"paper"`` is the paper's
+literal settings. Every section's own defaults are the paper's values unless its
+docstring says otherwise.
 
 References to the paper are to ``shared/paper/qdcnn-paper.tex``; "NOTES" is
 ``shared/paper/NOTES.md``, which records the readings taken where the paper is
@@ -12,10 +18,17 @@ ambiguous.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, ClassVar, Literal
 
+from qdcnn._validation import check_float, check_int, check_optional_shots, check_probability
 from qdcnn.errors import ParameterError
+
+#: The paper's two shadow thresholds on the UU-dagger fidelity, one per dataset (NOTES 2).
+PAPER_SHADOW_THRESHOLDS: tuple[float, ...] = (0.75, 0.97)
+#: Candidate thresholds a trained shadow model chooses from (the paper's two among them).
+SHADOW_THRESHOLD_GRID: tuple[float, ...] = (0.75, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999)
 
 
 @dataclass(frozen=True)
@@ -326,6 +339,10 @@ class DirectionConfig:
     straight_margin: float = 0.2
     shots: int | None = 1024
 
+    def __post_init__(self) -> None:
+        check_probability("direction.straight_margin", self.straight_margin)
+        check_optional_shots(self.shots, "direction.shots")
+
 
 @dataclass(frozen=True)
 class VQCConfig:
@@ -338,6 +355,15 @@ class VQCConfig:
     shots: int | None = None
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        check_int("vqc.feature_map_reps", self.feature_map_reps, 1, 8)
+        check_int("vqc.ansatz_reps", self.ansatz_reps, 0, 16)
+        check_int("vqc.maxiter", self.maxiter, 1, 100_000)
+        if self.loss not in ("mse", "cross_entropy"):
+            raise ParameterError("vqc.loss", self.loss, "'mse' or 'cross_entropy'")
+        check_optional_shots(self.shots, "vqc.shots")
+        check_int("vqc.seed", self.seed, 0, 2**32 - 1)
+
 
 @dataclass(frozen=True)
 class LabelConfig:
@@ -347,10 +373,15 @@ class LabelConfig:
     max_gap_s: float = 1.0
     threshold: float = 0.05
 
+    def __post_init__(self) -> None:
+        check_int("labels.window", self.window, 0, 10_000)
+        check_float("labels.max_gap_s", self.max_gap_s, 0.0, 1e6, open_lo=True)
+        check_float("labels.threshold", self.threshold, 0.0, 1e6)
+
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    """Every stage's settings; the defaults are the paper's.
+    """Every stage's settings. The default is the ``"udacity"`` preset (:meth:`preset`).
 
     Examples
     --------
@@ -358,21 +389,114 @@ class PipelineConfig:
     >>> cfg = PipelineConfig()
     >>> cfg.shadow.grid, cfg.shadow.downsample, cfg.lanes.canny_high
     (79, 4, 175)
-    >>> replace(cfg, shadow=replace(cfg.shadow, threshold=0.97)).shadow.threshold
-    0.97
+    >>> cfg.lanes.smoothing_iterations, PipelineConfig.paper().lanes.smoothing_iterations
+    (1, 30)
+    >>> replace(cfg, shadow=replace(cfg.shadow, threshold=0.75)).shadow.threshold
+    0.75
+    >>> PipelineConfig.from_dict(cfg.to_dict()) == cfg
+    True
     """
 
     shadow: ShadowConfig = field(default_factory=ShadowConfig)
-    lanes: LaneConfig = field(default_factory=LaneConfig)
+    lanes: LaneConfig = field(default_factory=LaneConfig.udacity)
     grouping: GroupingConfig = field(default_factory=GroupingConfig)
     direction: DirectionConfig = field(default_factory=DirectionConfig)
     vqc: VQCConfig = field(default_factory=VQCConfig)
     labels: LabelConfig = field(default_factory=LabelConfig)
     seed: int = 0
 
+    #: preset name -> what it is; :meth:`preset` builds them.
+    PRESETS: ClassVar[dict[str, str]] = {
+        "udacity": "the paper's settings with 1 smoothing pass (works on 320x160 recordings)",
+        "paper": "the paper's literal settings (30 smoothing passes)",
+    }
+
+    def __post_init__(self) -> None:
+        check_int("seed", self.seed, 0, 2**32 - 1)
+
+    @classmethod
+    def paper(cls, **changes: Any) -> PipelineConfig:
+        """The paper's literal settings, including its 30 median + blur passes before Canny."""
+        return cls(lanes=LaneConfig(), **changes)
+
+    @classmethod
+    def udacity(cls, **changes: Any) -> PipelineConfig:
+        """The default: the paper's settings, one smoothing pass (:meth:`LaneConfig.udacity`)."""
+        return cls(lanes=LaneConfig.udacity(), **changes)
+
+    @classmethod
+    def preset(cls, name: str, **changes: Any) -> PipelineConfig:
+        """The named preset ``name`` (one of :attr:`PRESETS`)."""
+        if name not in cls.PRESETS:
+            raise ParameterError("lanes", name, "one of " + ", ".join(map(repr, cls.PRESETS)))
+        builder = cls.paper if name == "paper" else cls.udacity
+        return builder(**changes)
+
+    def with_lane_options(
+        self, *, features: str = "slopes", edges: str = "grey", shadow_removal: bool = True
+    ) -> PipelineConfig:
+        """This config with a feature mode, Canny's input and shadow removal set.
+
+        The named options of ``qdcnn evaluate`` and ``train-direction`` (``--features``,
+        ``--edges``, ``--[no-]shadow-removal``); the defaults are the paper's.
+        """
+        if edges not in ("grey", "rgb"):
+            raise ParameterError("edges", edges, "'grey' (the paper) or 'rgb' (colour Canny)")
+        channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
+        lanes = replace(self.lanes, edge_channels=channels, remove_shadows=bool(shadow_removal))
+        return replace(self, lanes=lanes, grouping=GroupingConfig.for_features(features))
+
     def to_dict(self) -> dict[str, Any]:
         """Return the settings as plain JSON-serialisable values."""
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> PipelineConfig:
+        """The config :meth:`to_dict` wrote (lists become tuples; every value is re-checked).
+
+        Raises
+        ------
+        ParameterError
+            An unknown section or field, or a value its section refuses.
+        """
+        if not isinstance(data, Mapping):
+            raise ParameterError("config", type(data).__name__, "a mapping of sections")
+        sections = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(data) - set(sections))
+        if unknown:
+            raise ParameterError("config", unknown, f"sections among {sorted(sections)}")
+        values: dict[str, Any] = {}
+        for name, value in data.items():
+            section_type = _SECTION_TYPES.get(name)
+            values[name] = value if section_type is None else _section(section_type, name, value)
+        return cls(**values)
+
+
+_SECTION_TYPES: dict[str, type] = {
+    "shadow": ShadowConfig,
+    "lanes": LaneConfig,
+    "grouping": GroupingConfig,
+    "direction": DirectionConfig,
+    "vqc": VQCConfig,
+    "labels": LabelConfig,
+}
+
+
+def _section(section_type: type, name: str, value: object) -> Any:
+    if not isinstance(value, Mapping):
+        raise ParameterError(f"config.{name}", type(value).__name__, "a mapping of fields")
+    known = {f.name for f in fields(section_type)}
+    unknown = sorted(set(value) - known)
+    if unknown:
+        raise ParameterError(f"config.{name}", unknown, f"fields among {sorted(known)}")
+    return section_type(**{k: _as_tuples(v) for k, v in value.items()})
+
+
+def _as_tuples(value: Any) -> Any:
+    """JSON lists back to the tuples the frozen sections hold."""
+    if isinstance(value, list):
+        return tuple(_as_tuples(v) for v in value)
+    return value
 
 
 def _check_int(name: str, value: object, lo: int, hi: int) -> None:

@@ -10,9 +10,10 @@ import pytest
 torch = pytest.importorskip("torch")
 cv2 = pytest.importorskip("cv2")
 
+from qdcnn.data.frames import stack_images  # noqa: E402
 from qdcnn.experiments.datasets import FrameSet  # noqa: E402
 from qdcnn.experiments.evaluate import contiguous_folds  # noqa: E402
-from qdcnn.experiments.evaluate_dnn import evaluate_cnn, load_images  # noqa: E402
+from qdcnn.experiments.evaluate_dnn import evaluate_cnn  # noqa: E402
 
 
 def lean_frame(label: int, rng: np.random.Generator, h: int = 40, w: int = 80) -> np.ndarray:
@@ -51,7 +52,7 @@ def recording(tmp_path: Path, n: int, bad: dict[int, str]) -> tuple[FrameSet, np
 
 def test_load_images_lists_corrupt_and_odd_sized_frames(tmp_path: Path) -> None:
     frames, _ = recording(tmp_path, 10, {3: "corrupt", 7: "size"})
-    stack, readable, failures = load_images(frames)
+    stack, readable, failures = stack_images(frames)
     assert stack.shape == (10, 40, 80, 3)
     assert readable.tolist() == [i not in (3, 7) for i in range(10)]
     assert [Path(f.file).name for f in failures] == ["f003.png", "f007.png"]

@@ -10,46 +10,13 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.experiments.batch import Failure, run_batch
-from qdcnn.experiments.datasets import FrameSet
+from qdcnn.data.frames import FrameSet, stack_images
 from qdcnn.experiments.evaluate import MethodResult, contiguous_folds, majority_accuracy, summarise
 
 ARCH_OF: dict[str, Literal["pilotnet", "resnet50"]] = {
     "dnn-pilotnet": "pilotnet",
     "dnn-resnet50": "resnet50",
 }
-
-
-def load_images(frames: FrameSet) -> tuple[NDArray[np.uint8], NDArray[np.bool_], list[Failure]]:
-    """All frames as one ``(N, H, W, 3)`` array; unreadable frames are zero and listed."""
-    first: NDArray[np.uint8] | None = None
-    images: list[NDArray[np.uint8] | None] = []
-    failures: list[Failure] = []
-    for outcome in run_batch(range(len(frames)), frames.image, name=lambda i: frames.sources[i]):
-        if outcome.result is not None and (first is None or outcome.result.shape == first.shape):
-            first = outcome.result if first is None else first
-            images.append(outcome.result)
-        else:
-            images.append(None)
-            if outcome.failure is not None:
-                failures.append(outcome.failure)
-            else:
-                shape = None if outcome.result is None else outcome.result.shape
-                failures.append(
-                    Failure(
-                        frames.sources[outcome.item],
-                        f"{frames.sources[outcome.item]}: frame size {shape} differs from "
-                        f"the first frame's {None if first is None else first.shape}",
-                    )
-                )
-    if first is None:
-        return np.zeros((0, 1, 1, 3), np.uint8), np.zeros(len(frames), bool), failures
-    readable = np.array([im is not None for im in images])
-    stack = np.zeros((len(frames), *first.shape), np.uint8)
-    for i, im in enumerate(images):
-        if im is not None:
-            stack[i] = im
-    return stack, readable, failures
 
 
 def evaluate_cnn(
@@ -104,7 +71,7 @@ def evaluate_cnn(
     from qdcnn.models.training import CNNDirectionClassifier
 
     t0 = time.perf_counter()
-    images, readable, failures = load_images(frames)
+    images, readable, failures = stack_images(frames)
     keep = np.flatnonzero(readable)
     x, y = images[keep], labels[keep]
     predictions, majority, histories = [], [], []

@@ -23,9 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn import __version__
+from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
-from qdcnn.experiments.batch import Failure, run_batch
-from qdcnn.experiments.datasets import FrameSet
+from qdcnn.data.frames import FrameSet
 from qdcnn.pipeline import GROUPINGS, FrameResult, process_frame
 from qdcnn.quantum.sampling import as_generator
 from qdcnn.vision.grouping import feature_names

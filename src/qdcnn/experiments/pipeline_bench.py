@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from qdcnn._optional import HAS_TORCH
-from qdcnn.experiments.datasets import load_frameset
+from qdcnn.data.frames import load_frameset
 from qdcnn.experiments.direction_model import default_config, train_direction_model
 from qdcnn.experiments.evaluate import QUANTUM_METHODS
 from qdcnn.experiments.features import compute_features

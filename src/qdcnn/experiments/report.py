@@ -188,7 +188,7 @@ def direction_section(out_dir: Path, *, n_frames: int, seed: int, say: Say) -> S
     Each method runs with the paper's settings; the UU-dagger methods also with the
     named options of :func:`named_options_config`, on the same frames and folds.
     """
-    from qdcnn.experiments.datasets import load_frameset
+    from qdcnn.data.frames import load_frameset
     from qdcnn.experiments.direction_model import default_config
     from qdcnn.experiments.evaluate import QUANTUM_METHODS, evaluate_features
     from qdcnn.experiments.features import compute_features

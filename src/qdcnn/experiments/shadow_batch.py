@@ -9,12 +9,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from qdcnn.batch import Failure, run_batch
 from qdcnn.config import ShadowConfig
-from qdcnn.data.images import IMAGE_SUFFIXES, list_images, read_image, read_mask, write_mask
+from qdcnn.data.images import list_images, read_image, read_mask, write_mask
+from qdcnn.data.shadow_set import index_by_stem
 from qdcnn.errors import InputError
-from qdcnn.experiments.batch import Failure, run_batch
 from qdcnn.quantum.sampling import as_generator
 from qdcnn.vision.detectors import check_method, detect_shadows
 from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
@@ -107,14 +107,6 @@ class ScoreReport:
         return out
 
 
-def _index_by_stem(folder: Path) -> dict[str, Path]:
-    return {
-        p.stem: p
-        for p in sorted(folder.iterdir())
-        if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-    }
-
-
 def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
     """Score ``<stem>_mask.png`` predictions against ``<stem>.<ext>`` ground-truth masks.
 
@@ -125,8 +117,8 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
     for folder, what in ((pred_dir, "prediction"), (gt_dir, "ground-truth")):
         if not folder.is_dir():
             raise InputError(folder, f"{what} folder not found")
-    truth = _index_by_stem(gt_dir)
-    preds = [p for p in _index_by_stem(pred_dir).values() if p.stem.endswith("_mask")]
+    truth = index_by_stem(gt_dir)
+    preds = [p for p in index_by_stem(pred_dir).values() if p.stem.endswith("_mask")]
     if not preds:
         raise InputError(pred_dir, "no predicted masks named <stem>_mask.png")
 
@@ -151,41 +143,3 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
 def median_seconds(records: Sequence[MaskRecord]) -> float | None:
     """Median detection time of the records, or ``None`` when there are none."""
     return float(np.median([r.seconds for r in records])) if records else None
-
-
-def load_shadow_set(
-    folder: Path,
-) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.bool_]], list[Failure]]:
-    """Images and masks of a shadow set laid out as ``images/<stem>.*`` and ``masks/<stem>.*``.
-
-    Pairs with an unreadable image or mask, or a missing mask, are failures; the
-    others are returned.
-    """
-    images_dir, masks_dir = folder / "images", folder / "masks"
-    for d in (images_dir, masks_dir):
-        if not d.is_dir():
-            raise InputError(d, "folder not found (a shadow set has images/ and masks/)")
-    masks = _index_by_stem(masks_dir)
-    images, truth = [], []
-
-    def work(path: Path) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
-        mask_file = masks.get(path.stem)
-        if mask_file is None:
-            raise InputError(path, f"no mask {path.stem}.* in {masks_dir}")
-        image, mask = read_image(path), read_mask(mask_file)
-        if mask.shape != image.shape[:2]:
-            raise InputError(
-                mask_file, f"mask is {mask.shape[::-1]}, image is {image.shape[1::-1]}"
-            )
-        return image, mask
-
-    failures = []
-    for outcome in run_batch(list(_index_by_stem(images_dir).values()), work):
-        if outcome.result is not None:
-            images.append(outcome.result[0])
-            truth.append(outcome.result[1])
-        elif outcome.failure is not None:
-            failures.append(outcome.failure)
-    if not images:
-        raise InputError(folder, "no usable image/mask pairs")
-    return images, truth, failures
