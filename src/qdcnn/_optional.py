@@ -52,8 +52,16 @@ def require(name: str, purpose: str) -> ModuleType:
         raise MissingExtraError(name.replace("_", "-"), _EXTRA_OF[name], purpose) from exc
 
 
-HAS_QISKIT = has_module("qiskit")
-HAS_AER = has_module("qiskit_aer")
-HAS_QISKIT_ML = has_module("qiskit_machine_learning")
-HAS_TORCH = has_module("torch")
-HAS_DASK = has_module("dask")
+def has_torch() -> bool:
+    """Whether torch (the ``dnn`` extra) is installed."""
+    return has_module("torch")
+
+
+def has_gpu() -> bool:
+    """Whether torch is installed and sees a CUDA or Apple MPS device."""
+    if not has_torch():
+        return False
+    import torch
+
+    mps = getattr(torch.backends, "mps", None)
+    return bool(torch.cuda.is_available() or (mps is not None and mps.is_available()))

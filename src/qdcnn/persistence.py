@@ -286,3 +286,82 @@ def expect_arrays(
             raise InputError(
                 path, f"array {name!r} has shape {arrays[name].shape}, the header says {shape}"
             )
+
+
+# ---------------------------------------------------------------- fitted estimators
+
+
+def estimator_state(
+    estimator: Any, attributes: Collection[str]
+) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """A fitted estimator's ``attributes`` as (JSON meta, arrays) for :func:`save_model`.
+
+    Numbers, tuples and arrays become arrays (so NaN survives); lists of equal-shape
+    arrays are stacked; ``None``, strings and booleans stay in the meta. The meta records
+    each attribute's form so :func:`restore_estimator_state` gives back the same types.
+    """
+    forms: dict[str, Any] = {}
+    arrays: dict[str, NDArray[Any]] = {}
+    for name in attributes:
+        value = getattr(estimator, name)
+        if value is None or isinstance(value, bool | str):
+            forms[name] = {"value": value}
+        elif isinstance(value, np.ndarray):
+            forms[name], arrays[name] = "array", value
+        elif isinstance(value, int | np.integer):
+            forms[name], arrays[name] = "int", np.asarray(value, dtype=np.int64)
+        elif isinstance(value, float | np.floating):
+            forms[name], arrays[name] = "float", np.asarray(value, dtype=np.float64)
+        elif isinstance(value, tuple):
+            forms[name], arrays[name] = "tuple", np.asarray(value, dtype=np.float64)
+        elif isinstance(value, list) and all(isinstance(v, np.ndarray) for v in value):
+            forms[name] = "array-list"
+            arrays[name] = np.stack(value) if value else np.zeros((0,))
+        elif isinstance(value, list):
+            forms[name], arrays[name] = "list", np.asarray(value, dtype=np.float64)
+        else:
+            raise TypeError(f"cannot store attribute {name!r} of type {type(value).__name__}")
+    return {"attributes": forms}, arrays
+
+
+def restore_estimator_state(
+    estimator: Any,
+    attributes: Collection[str],
+    meta: Mapping[str, Any],
+    arrays: Mapping[str, NDArray[Any]],
+    source: str | os.PathLike[str],
+) -> Any:
+    """Set the ``attributes`` that :func:`estimator_state` stored on ``estimator``; returns it.
+
+    Exactly the named attributes must be present: a file can neither leave one out nor
+    set any other attribute of the estimator.
+
+    Raises
+    ------
+    InputError
+        A missing, unexpected or unknown-form attribute, or a missing array (a damaged file).
+    """
+    forms = meta.get("attributes")
+    if not isinstance(forms, dict) or set(forms) != set(attributes):
+        raise InputError(
+            source, f"the model's fitted attributes are not {sorted(attributes)} (a damaged file)"
+        )
+    for name, form in forms.items():
+        if isinstance(form, dict) and set(form) == {"value"}:
+            setattr(estimator, name, form["value"])
+            continue
+        if name not in arrays:
+            raise InputError(source, f"fitted attribute {name!r} has no array in the file")
+        a = arrays[name]
+        converters: dict[str, Any] = {
+            "array": lambda x: x,
+            "int": lambda x: int(x),
+            "float": lambda x: float(x),
+            "tuple": lambda x: tuple(float(v) for v in x),
+            "list": lambda x: [float(v) for v in x],
+            "array-list": lambda x: [row.copy() for row in x],
+        }
+        if form not in converters:
+            raise InputError(source, f"fitted attribute {name!r} has an unknown form {form!r}")
+        setattr(estimator, name, converters[form](a))
+    return estimator

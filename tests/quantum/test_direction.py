@@ -8,7 +8,7 @@ from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 from sklearn.model_selection import KFold, cross_val_score
 
-from qdcnn._optional import HAS_AER
+from qdcnn._optional import has_module
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.direction import UUDirectionClassifier, rule, soft_scores
 from qdcnn.quantum.noise import NoiseSpec
@@ -159,7 +159,7 @@ def test_shots_are_seeded_and_binomial(rng: np.random.Generator) -> None:
     assert not np.array_equal(other, p)
 
 
-@pytest.mark.skipif(not HAS_AER, reason="qiskit-aer not installed")
+@pytest.mark.skipif(not has_module("qiskit_aer"), reason="qiskit-aer not installed")
 def test_aer_backend_matches_numpy(rng: np.random.Generator) -> None:
     X, y = road_slopes(20, rng)
     ours = UUDirectionClassifier(shots=None).fit(X, y)

@@ -8,7 +8,7 @@ from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 from sklearn.model_selection import KFold, cross_val_score
 
-from qdcnn._optional import HAS_AER, HAS_QISKIT_ML
+from qdcnn._optional import has_module
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.circuits import CircuitBuilder, vqc_circuit, zz_feature_map
 from qdcnn.quantum.execute import run_probabilities
@@ -25,7 +25,7 @@ from qdcnn.quantum.vqc import (
     make_sampler_qnn,
 )
 
-needs_qiskit_ml = pytest.mark.skipif(not HAS_QISKIT_ML, reason="qiskit-machine-learning missing")
+needs_qiskit_ml = pytest.mark.skipif(not has_module("qiskit_machine_learning"), reason="qiskit-machine-learning missing")
 
 
 def road_slopes(
@@ -162,7 +162,7 @@ def test_training_under_full_depolarizing_sees_a_flat_objective(
     np.testing.assert_allclose(clf.objective_history_, expected, atol=1e-12)
 
 
-@pytest.mark.skipif(not HAS_AER, reason="qiskit-aer not installed")
+@pytest.mark.skipif(not has_module("qiskit_aer"), reason="qiskit-aer not installed")
 def test_aer_backend_matches_numpy(rng: np.random.Generator) -> None:
     x = rng.uniform(0, np.pi, (6, 2))
     w = rng.uniform(0, 2 * np.pi, 4)

@@ -1,113 +1,329 @@
-"""Trained direction models: a fitted classifier plus the pipeline settings that made its features.
+"""``qdcnn train-direction``: a trained direction model, its file format and its training.
 
-Saved with :mod:`pickle` (scikit-learn's own persistence format for estimators)
-inside a small header that names the method and qdcnn version, so a wrong file
-gets a clear error instead of an unpickling traceback.
+A :class:`DirectionModel` is a fitted estimator of a registered method
+(:mod:`qdcnn.experiments.methods`) together with the pipeline settings that made its
+inputs. It is saved in the project's one data-only format (:mod:`qdcnn.persistence`):
+the method, config, estimator parameters and training summary in the JSON header, the
+fitted arrays as safetensors. Loading rebuilds the estimator through the registry and
+sets only its declared fitted attributes; nothing in a file can run code.
 """
 
 from __future__ import annotations
 
+import math
 import os
-import pickle
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from qdcnn import __version__
-from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
-from qdcnn.data.labels import DIRECTIONS
-from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.evaluate import QUANTUM_METHODS, make_classifier
+from qdcnn._validation import check_int
+from qdcnn.batch import Failure
+from qdcnn.config import PipelineConfig
+from qdcnn.data.labels import DIRECTIONS, class_balance
+from qdcnn.errors import InputError, ParameterError, QdcnnError
+from qdcnn.experiments.methods import DirectionMethod, TrainingOptions, get_method
+from qdcnn.experiments.protocol import fit_with_search
+from qdcnn.experiments.reporting import Reporter
+from qdcnn.persistence import (
+    estimator_state,
+    load_model,
+    restore_estimator_state,
+    save_model,
+)
+
+__all__ = [
+    "DirectionModel",
+    "TrainDirectionResult",
+    "TrainDirectionSpec",
+    "default_config",
+    "train_direction",
+    "train_direction_model",
+]
 
 KIND = "qdcnn-direction-model"
+FORMAT_VERSION = 2
+
+
+def default_config() -> PipelineConfig:
+    """The default settings (:meth:`PipelineConfig.udacity`), kept for existing callers."""
+    return PipelineConfig()
 
 
 @dataclass
 class DirectionModel:
-    """A fitted quantum direction classifier and the pipeline settings of its features."""
+    """A fitted direction classifier and the pipeline settings of its inputs.
+
+    Attributes
+    ----------
+    method : str
+        Registered method name.
+    config : PipelineConfig
+        Settings that produced the training inputs (and must produce new ones).
+    estimator : estimator
+        The fitted classifier.
+    trained_on : str
+        The dataset spec it was trained on.
+    summary : dict
+        Training frames, class balance, training accuracy and chosen hyperparameters.
+    """
 
     method: str
     config: PipelineConfig
     estimator: Any
     trained_on: str
+    summary: dict[str, Any] = field(default_factory=dict)
 
     @property
-    def grouping(self) -> str:
-        return QUANTUM_METHODS[self.method][0]
+    def info(self) -> DirectionMethod:
+        return get_method(self.method)
 
-    def predict(self, features: NDArray[np.float64]) -> NDArray[np.int64]:
-        return np.asarray(self.estimator.predict(np.atleast_2d(features)), dtype=np.int64)
+    @property
+    def grouping(self) -> str | None:
+        """The lane grouping whose features the model reads (``None`` for frame models)."""
+        return self.info.grouping
+
+    def predict(self, inputs: ArrayLike) -> NDArray[np.int64]:
+        """Directions (0 left, 1 straight, 2 right) of lane features ``(N, F)`` or frames."""
+        x = np.asarray(inputs)
+        if self.info.inputs == "lanes":
+            x = np.atleast_2d(x.astype(np.float64))
+        return np.asarray(self.estimator.predict(x), dtype=np.int64)
+
+    def predict_proba(self, inputs: ArrayLike) -> NDArray[np.float64] | None:
+        """Class probabilities ``(N, 3)``, or ``None`` when the estimator has none."""
+        if not hasattr(self.estimator, "predict_proba"):
+            return None
+        x = np.asarray(inputs)
+        if self.info.inputs == "lanes":
+            x = np.atleast_2d(x.astype(np.float64))
+        return np.asarray(self.estimator.predict_proba(x), dtype=np.float64)
+
+    # ------------------------------------------------------------ persistence
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        payload = {
-            "kind": KIND,
-            "version": __version__,
+        """Write the model (atomically) in the data-only format; returns the path."""
+        state_meta, arrays = _estimator_state(self.estimator)
+        meta = {
             "method": self.method,
-            "config": self.config,
-            "estimator": self.estimator,
+            "config": self.config.to_dict(),
             "trained_on": self.trained_on,
+            "classes": list(DIRECTIONS),
+            "params": _params_to_json(self.estimator.get_params()),
+            "state": state_meta,
+            "summary": self.summary,
         }
-        p.write_bytes(pickle.dumps(payload))
-        return p
+        return save_model(path, KIND, FORMAT_VERSION, meta, arrays)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> DirectionModel:
-        p = Path(path)
-        if not p.is_file():
-            raise InputError(p, "model file not found")
+        """Read a model written by :meth:`save`.
+
+        Raises
+        ------
+        InputError
+            Missing, corrupt, pickle-based or foreign file, an unknown method, or settings
+            and arrays that do not fit the method's estimator (one line naming the file).
+        """
+        header, arrays = load_model(path, KIND, {FORMAT_VERSION})
+        meta = header.meta
         try:
-            payload = pickle.loads(p.read_bytes())
-        except Exception as exc:  # unpickling can raise almost anything on a wrong file
-            raise InputError(p, f"not a qdcnn direction model ({type(exc).__name__})") from None
-        if not isinstance(payload, dict) or payload.get("kind") != KIND:
-            raise InputError(p, f"not a qdcnn direction model (missing kind '{KIND}')")
+            method = get_method(str(meta["method"]))
+            config = PipelineConfig.from_dict(meta["config"])
+            estimator, _ = method.estimator(config)
+            estimator.set_params(**_params_from_json(meta["params"]))
+        except KeyError as exc:
+            raise InputError(path, f"model header lacks {exc}") from None
+        except (QdcnnError, TypeError, ValueError) as exc:
+            raise InputError(path, f"model settings are invalid: {_one_line(exc)}") from None
+        _restore_estimator(estimator, meta.get("state", {}), arrays, path)
         return cls(
-            payload["method"], payload["config"], payload["estimator"], payload["trained_on"]
+            method.name,
+            config,
+            estimator,
+            str(meta.get("trained_on", "")),
+            dict(meta.get("summary", {})),
         )
 
 
-def default_config() -> PipelineConfig:
-    """Settings for 320x160 frames: the paper's, with one smoothing pass (see LaneConfig)."""
-    return replace(PipelineConfig(), lanes=LaneConfig.udacity())
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
 
 
-def with_lane_options(
-    config: PipelineConfig,
-    *,
-    features: str = "slopes",
-    edges: str = "grey",
-    shadow_removal: bool = True,
-) -> PipelineConfig:
-    """``config`` with a feature mode, Canny's input and shadow removal set.
+def _estimator_state(estimator: Any) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """The estimator's own state functions, or its declared ``fitted_attributes``."""
+    if hasattr(estimator, "fitted_state"):
+        meta, arrays = estimator.fitted_state()
+        return {"custom": meta}, arrays
+    attributes = getattr(estimator, "fitted_attributes", None)
+    if attributes is None:
+        raise ParameterError(
+            "estimator",
+            type(estimator).__name__,
+            "an estimator with fitted_attributes or fitted_state() to be saved",
+        )
+    return estimator_state(estimator, attributes)
 
-    The options of ``qdcnn evaluate`` and ``train-direction`` (``--features``, ``--edges``,
-    ``--[no-]shadow-removal``); the defaults are the paper's.
-    """
-    if edges not in ("grey", "rgb"):
-        raise ParameterError("edges", edges, "'grey' (the paper) or 'rgb' (colour Canny)")
-    channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
-    lanes = replace(config.lanes, edge_channels=channels, remove_shadows=shadow_removal)
-    return replace(config, lanes=lanes, grouping=GroupingConfig.for_features(features))
+
+def _restore_estimator(
+    estimator: Any, meta: Any, arrays: dict[str, NDArray[Any]], source: str | os.PathLike[str]
+) -> None:
+    if not isinstance(meta, dict):
+        raise InputError(source, "model header field 'state' is not an object")
+    if hasattr(estimator, "load_fitted_state"):
+        estimator.load_fitted_state(meta.get("custom", {}), arrays, source)
+        return
+    restore_estimator_state(estimator, estimator.fitted_attributes, meta, arrays, source)
+
+
+def _params_to_json(params: dict[str, Any]) -> dict[str, Any]:
+    """Estimator parameters as JSON: noise models by their label, tuples as lists."""
+    out: dict[str, Any] = {}
+    for key, value in params.items():
+        if hasattr(value, "label") and callable(value.label):
+            out[key] = {"noise": value.label()}
+        elif isinstance(value, Path):
+            out[key] = str(value)
+        elif isinstance(value, tuple):
+            out[key] = list(value)
+        elif isinstance(value, float) and not math.isfinite(value):
+            out[key] = {"float": repr(value)}
+        else:
+            out[key] = value
+    return out
+
+
+def _params_from_json(params: Any) -> dict[str, Any]:
+    from qdcnn.quantum.noise import parse_noise
+
+    if not isinstance(params, dict):
+        raise TypeError("params is not an object")
+    out: dict[str, Any] = {}
+    for key, value in params.items():
+        if isinstance(value, dict) and set(value) == {"noise"}:
+            text = str(value["noise"])
+            out[key] = None if text == "ideal" else parse_noise(text)
+        elif isinstance(value, dict) and set(value) == {"float"}:
+            out[key] = float(value["float"])
+        elif isinstance(value, list):
+            out[key] = tuple(value)
+        else:
+            out[key] = value
+    return out
+
+
+# ---------------------------------------------------------------- training
 
 
 def train_direction_model(
-    method: str,
-    features: NDArray[np.float64],
+    method: str | DirectionMethod,
+    inputs: ArrayLike,
     labels: NDArray[np.int64],
     config: PipelineConfig,
     trained_on: str,
+    *,
+    inner_folds: int = 3,
+    gap: int = 5,
+    options: TrainingOptions | None = None,
 ) -> DirectionModel:
-    """Fit the classifier of ``method`` on lane features (its fixed, default hyperparameters)."""
-    _, kind = QUANTUM_METHODS[method]
-    estimator, _ = make_classifier(kind, config, seed=config.seed)
-    estimator.fit(features, labels)
-    return DirectionModel(method, config, estimator, trained_on)
+    """Fit ``method`` on ``inputs`` (lane features or frames), hyperparameters by inner CV.
+
+    The grid values are chosen by the contiguous inner cross-validation that
+    ``qdcnn evaluate`` runs in each fold (:func:`~qdcnn.experiments.protocol.fit_with_search`),
+    then the estimator is refitted on all of ``inputs``.
+    """
+    m = get_method(method) if isinstance(method, str) else method
+    y = np.asarray(labels, dtype=np.int64)
+    estimator, grid = m.estimator(config, options)
+    fitted, chosen = fit_with_search(estimator, grid, inputs, y, inner_folds=inner_folds, gap=gap)
+    predictions = np.asarray(fitted.predict(inputs), dtype=np.int64)
+    summary = {
+        "n": int(y.size),
+        "class_balance": class_balance(y),
+        "training_accuracy": float(np.mean(predictions == y)),
+        "chosen_hyperparameters": chosen,
+    }
+    return DirectionModel(m.name, config, fitted, trained_on, summary)
 
 
-def direction_name(index: int) -> str:
-    return DIRECTIONS[int(index)]
+@dataclass(frozen=True)
+class TrainDirectionSpec:
+    """What ``qdcnn train-direction`` runs."""
+
+    data: str
+    out: Path
+    method: str = "image-split-uu"
+    config: PipelineConfig = field(default_factory=PipelineConfig)
+    inner_folds: int = 3
+    gap: int = 5
+    training: TrainingOptions = field(default_factory=TrainingOptions)
+    use_cache: bool = True
+
+    def __post_init__(self) -> None:
+        get_method(self.method)
+        check_int("gap", self.gap, 0, 10_000)
+        if self.inner_folds != 0:
+            check_int("inner_folds", self.inner_folds, 2, 100)
+
+
+@dataclass
+class TrainDirectionResult:
+    """The trained model, where it went, and the frames left out."""
+
+    model: DirectionModel
+    path: Path
+    failures: list[Failure]
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failures else 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": str(self.path),
+            "method": self.model.method,
+            "data": self.model.trained_on,
+            **self.model.summary,
+            "failures": [f.to_dict() for f in self.failures],
+        }
+
+
+def train_direction(
+    spec: TrainDirectionSpec, reporter: Reporter | None = None
+) -> TrainDirectionResult:
+    """Train ``spec.method`` on every readable frame of ``spec.data`` and save it."""
+    from qdcnn.data.frames import load_frameset, stack_images
+    from qdcnn.experiments.lane_data import load_lane_data
+
+    report = reporter or Reporter()
+    method = get_method(spec.method)
+    if method.inputs == "lanes":
+        assert method.grouping is not None
+        frames = load_frameset(spec.data, seed=spec.config.seed)
+        with report.progress(len(frames), f"lane features ({frames.name})") as advance:
+            lanes = load_lane_data(
+                frames, spec.config, (method.grouping,), use_cache=spec.use_cache, on_frame=advance
+            )
+        inputs: Any = lanes.features(method.grouping)
+        y, failures = lanes.y, lanes.failures
+    else:
+        frames = load_frameset(spec.data, seed=spec.config.seed)
+        images, readable, unreadable = stack_images(frames)
+        inputs, y = images[readable], frames.labels(spec.config.labels)[readable]
+        failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable
+    for f in failures:
+        report.failure(f)
+    model = train_direction_model(
+        method,
+        inputs,
+        y,
+        spec.config,
+        spec.data,
+        inner_folds=spec.inner_folds,
+        gap=spec.gap,
+        options=spec.training,
+    )
+    path = model.save(spec.out)
+    return TrainDirectionResult(model, path, failures)

@@ -1,197 +1,52 @@
-"""Cross-validated direction accuracy: the paper's table, with honest folds.
+"""``qdcnn evaluate``: cross-validated direction accuracy, the paper's accuracy table.
 
-Folds are contiguous blocks of frames (scikit-learn ``KFold`` without shuffling);
-frames within ``gap`` of a test block are also left out of training, because
-labels come from steering smoothed over neighbouring frames. Hyperparameters are
-chosen by an inner contiguous cross-validation on the training folds only.
+Every method of the registry (:mod:`qdcnn.experiments.methods`) is evaluated by the one
+protocol of :mod:`qdcnn.experiments.protocol`: contiguous folds with a gap, the method's
+hyperparameters chosen by an inner contiguous CV (with the gap) on the training folds
+only, accuracy pooled over all test frames. Lane methods read the cached lane features of
+the readable frames; frame methods (CNNs) read the frames themselves.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sklearn.base import BaseEstimator, clone
-from sklearn.metrics import confusion_matrix, precision_recall_fscore_support
-from sklearn.model_selection import GridSearchCV, KFold
 
+from qdcnn._optional import has_gpu, has_torch
+from qdcnn._validation import check_int
+from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
-from qdcnn.data.labels import DIRECTIONS, check_labels_usable
-from qdcnn.errors import ParameterError
+from qdcnn.data.frames import FrameSet, load_frameset, stack_images
+from qdcnn.data.labels import check_labels_usable
+from qdcnn.experiments.lane_data import LaneData, load_lane_data
+from qdcnn.experiments.methods import (
+    DirectionMethod,
+    TrainingOptions,
+    get_method,
+    select_methods,
+)
+from qdcnn.experiments.protocol import (
+    ContiguousKFold,
+    MethodResult,
+    cross_validate,
+    summarise,
+)
+from qdcnn.experiments.reporting import Reporter
 
-#: The paper's six quantum methods: grouping + classifier.
-QUANTUM_METHODS: dict[str, tuple[str, str]] = {
-    "image-split-uu": ("image-split", "uu"),
-    "kmeans-uu": ("kmeans", "uu"),
-    "spectral-uu": ("spectral", "uu"),
-    "image-split-vqc": ("image-split", "vqc"),
-    "kmeans-vqc": ("kmeans", "vqc"),
-    "spectral-vqc": ("spectral", "vqc"),
-}
-DNN_METHODS: tuple[str, ...] = ("dnn-pilotnet", "dnn-resnet50")
-ALL_METHODS: tuple[str, ...] = (*QUANTUM_METHODS, *DNN_METHODS)
-
-
-def check_method(method: str) -> str:
-    if method not in ALL_METHODS and method != "all":
-        raise ParameterError("method", method, "one of " + ", ".join((*ALL_METHODS, "all")))
-    return method
-
-
-def contiguous_folds(
-    n: int, k: int, gap: int = 0
-) -> list[tuple[NDArray[np.intp], NDArray[np.intp]]]:
-    """``k`` contiguous test blocks; training leaves out ``gap`` frames on each side of each."""
-    if not 2 <= k <= n:
-        raise ParameterError("folds", k, f"an integer in [2, {n}] (the number of frames)")
-    folds = []
-    for _, test in KFold(n_splits=k, shuffle=False).split(np.arange(n)):
-        lo, hi = test[0] - gap, test[-1] + gap
-        idx = np.arange(n)
-        train = idx[(idx < lo) | (idx > hi)]
-        folds.append((train, test))
-    return folds
-
-
-def make_classifier(
-    kind: str, config: PipelineConfig, seed: int = 0
-) -> tuple[BaseEstimator, dict[str, list[Any]]]:
-    """The estimator of a quantum method and its hyperparameter grid for the inner CV.
-
-    The estimator reads the two columns of the feature mode ``config.grouping.features``
-    (:func:`qdcnn.vision.grouping.mode_columns`) from a feature table computed with
-    ``config.grouping.extra_features``; with the paper's mode ("slopes") and no extras the
-    table is exactly the two slopes.
-
-    Grids. The paper's mode keeps the original grid (UU: the angle map; VQC: the interpret
-    map). The other (named, not the paper's) modes add to the VQC grid the angle span of
-    the feature scaling (1 or 0.5) and the ZZ feature map's repetitions (1 or 2), and train
-    the VQC from 3 starting points, keeping the lowest training objective
-    (``restarts=3``): on the paper's full span the ZZ map's phase reaches ``2 pi^2``, and
-    from one start COBYLA often ends worse than the majority class.
-    """
-    from qdcnn.vision.grouping import mode_columns
-
-    grouping = config.grouping
-    columns: tuple[int, int] | None = None
-    if grouping.features != "slopes" or grouping.extra_features:
-        columns = mode_columns(grouping.features, grouping.extra_features)
-    paper = grouping.features == "slopes"
-    if kind == "uu":
-        from qdcnn.quantum.direction import UUDirectionClassifier
-
-        uu = UUDirectionClassifier(
-            straight_margin=config.direction.straight_margin,
-            shots=config.direction.shots,
-            seed=seed,
-            feature_columns=columns,
-        )
-        return uu, {"angle_map": ["arctan", "minmax"]}
-    from qdcnn.quantum.vqc import VQCClassifier
-
-    vqc = VQCClassifier(
-        feature_map_reps=config.vqc.feature_map_reps,
-        ansatz_reps=config.vqc.ansatz_reps,
-        maxiter=config.vqc.maxiter,
-        loss=config.vqc.loss,
-        shots=config.vqc.shots,
-        seed=seed,
-        feature_columns=columns,
-    )
-    grid: dict[str, list[Any]] = {"interpret": ["min2", "mod3"]}
-    if not paper:
-        vqc.set_params(restarts=3)
-        grid["angle_span"] = [1.0, 0.5]
-        grid["feature_map_reps"] = sorted({config.vqc.feature_map_reps, 1})
-    return vqc, grid
-
-
-@dataclass
-class MethodResult:
-    """Cross-validated accuracy of one method on one dataset (the ``--json`` object)."""
-
-    method: str
-    dataset: str
-    n: int
-    accuracy: float
-    accuracy_std: float
-    per_class: dict[str, dict[str, float]]
-    confusion: list[list[int]]
-    majority_baseline: float
-    frames_without_lines: int
-    seconds: float
-    fold_accuracies: list[float]
-    extra: dict[str, Any]
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "method": self.method,
-            "dataset": self.dataset,
-            "n": self.n,
-            "accuracy": self.accuracy,
-            "accuracy_std": self.accuracy_std,
-            "per_class": self.per_class,
-            "confusion": self.confusion,
-            "majority_baseline": self.majority_baseline,
-            "frames_without_lines": self.frames_without_lines,
-            "seconds": self.seconds,
-            "fold_accuracies": self.fold_accuracies,
-            **self.extra,
-        }
-
-
-def summarise(
-    method: str,
-    dataset: str,
-    y: NDArray[np.int64],
-    predictions: list[tuple[NDArray[np.intp], NDArray[np.int64]]],
-    majority: list[float],
-    *,
-    frames_without_lines: int,
-    seconds: float,
-    extra: dict[str, Any] | None = None,
-) -> MethodResult:
-    """Fold predictions -> accuracy (mean over folds), per-class scores, pooled confusion."""
-    accs = [float(np.mean(pred == y[test])) for test, pred in predictions]
-    truth = np.concatenate([y[test] for test, _ in predictions])
-    pred = np.concatenate([p for _, p in predictions])
-    p, r, f, s = precision_recall_fscore_support(truth, pred, labels=[0, 1, 2], zero_division=0)
-    per_class = {
-        name: {
-            "precision": float(p[i]),
-            "recall": float(r[i]),
-            "f1": float(f[i]),
-            "support": int(s[i]),
-        }
-        for i, name in enumerate(DIRECTIONS)
-    }
-    return MethodResult(
-        method,
-        dataset,
-        int(truth.size),
-        float(np.mean(accs)),
-        float(np.std(accs)),
-        per_class,
-        confusion_matrix(truth, pred, labels=[0, 1, 2]).tolist(),
-        float(np.mean(majority)),
-        frames_without_lines,
-        seconds,
-        accs,
-        extra or {},
-    )
-
-
-def majority_accuracy(y_train: NDArray[np.int64], y_test: NDArray[np.int64]) -> float:
-    """Accuracy of always predicting the training folds' most frequent class."""
-    return float(np.mean(y_test == np.bincount(y_train, minlength=3).argmax()))
+__all__ = [
+    "EvaluationResult",
+    "EvaluationSpec",
+    "evaluate_features",
+    "evaluate_frames",
+    "run_evaluation",
+]
 
 
 def evaluate_features(
-    method: str,
+    method: str | DirectionMethod,
     dataset: str,
     X: NDArray[np.float64],
     y: NDArray[np.int64],
@@ -201,35 +56,225 @@ def evaluate_features(
     gap: int = 5,
     inner_folds: int = 3,
     frames_without_lines: int = 0,
-    on_fold: Callable[[int], None] | None = None,
 ) -> MethodResult:
-    """Cross-validate one quantum method on precomputed lane features."""
+    """Cross-validate one lane method on precomputed lane features ``X`` with labels ``y``."""
+    m = get_method(method) if isinstance(method, str) else method
     cfg = config or PipelineConfig()
-    _, kind = QUANTUM_METHODS[method]
     check_labels_usable(y, source=dataset)
-    t0 = time.perf_counter()
-    predictions, majority, chosen = [], [], []
-    for i, (train, test) in enumerate(contiguous_folds(len(y), folds, gap)):
-        estimator, grid = make_classifier(kind, cfg, seed=cfg.seed)
-        model: Any = estimator
-        if inner_folds >= 2 and grid:
-            model = GridSearchCV(
-                clone(estimator), grid, cv=KFold(inner_folds, shuffle=False), error_score=np.nan
-            )
-        model.fit(X[train], y[train])
-        if isinstance(model, GridSearchCV):
-            chosen.append(model.best_params_)
-        predictions.append((test, np.asarray(model.predict(X[test]), dtype=np.int64)))
-        majority.append(majority_accuracy(y[train], y[test]))
-        if on_fold:
-            on_fold(i)
-    return summarise(
-        method,
-        dataset,
-        y,
-        predictions,
-        majority,
-        frames_without_lines=frames_without_lines,
-        seconds=time.perf_counter() - t0,
-        extra={"chosen_hyperparameters": chosen, "folds": folds, "gap": gap},
+    cv = cross_validate(
+        lambda: m.estimator(cfg), X, y, folds=folds, gap=gap, inner_folds=inner_folds
     )
+    return summarise(
+        m.name,
+        dataset,
+        np.asarray(y, dtype=np.int64),
+        cv,
+        frames_without_lines=frames_without_lines,
+        extra={"chosen_hyperparameters": cv.chosen, "folds": folds, "gap": gap},
+    )
+
+
+def evaluate_frames(
+    method: str | DirectionMethod,
+    frames: FrameSet,
+    labels: NDArray[np.int64],
+    *,
+    config: PipelineConfig | None = None,
+    options: TrainingOptions | None = None,
+    folds: int = 5,
+    gap: int = 5,
+) -> tuple[MethodResult, list[Failure]]:
+    """Cross-validate one frame method (a CNN) on the readable frames of ``frames``.
+
+    Each fold trains a fresh estimator on the training frames (its early stopping
+    validates on frames of those, never on the test block) and predicts the test block.
+
+    Returns
+    -------
+    result : MethodResult
+    failures : list of Failure
+        Unreadable frames (left out) and frames of another size than the first.
+    """
+    m = get_method(method) if isinstance(method, str) else method
+    cfg = config or PipelineConfig()
+    opts = options or TrainingOptions()
+    images, readable, failures = stack_images(frames)
+    keep = np.flatnonzero(readable)
+    y = np.asarray(labels, dtype=np.int64)[keep]
+    check_labels_usable(y, source=frames.spec)
+    cv = cross_validate(
+        lambda: m.estimator(cfg, opts),
+        images[keep],
+        y,
+        folds=folds,
+        gap=gap,
+        inner_folds=0,
+        keep_estimators=True,
+    )
+    extra: dict[str, Any] = {
+        "folds": folds,
+        "gap": gap,
+        "epochs": opts.epochs,
+        "weights": None if opts.weights is None else str(opts.weights),
+        "epochs_run": [len(getattr(e, "history_", [])) for e in cv.estimators],
+        "settings": _settings(cv.estimators[-1]) if cv.estimators else {},
+    }
+    return summarise(m.name, frames.name, y, cv, extra=extra), failures
+
+
+def _settings(estimator: Any) -> dict[str, Any]:
+    params = estimator.get_params()
+    return {
+        k: str(v) if hasattr(v, "__fspath__") else list(v) if isinstance(v, tuple) else v
+        for k, v in params.items()
+        if k not in ("progress", "checkpoint_dir")
+    }
+
+
+@dataclass(frozen=True)
+class EvaluationSpec:
+    """What ``qdcnn evaluate`` runs.
+
+    Attributes
+    ----------
+    data : str
+        Dataset spec (``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``).
+    methods : str
+        A registered method, a comma list, or ``"all"``.
+    config : PipelineConfig
+        Pipeline and classifier settings (``PipelineConfig.from_options``).
+    folds, gap, inner_folds : int
+        The protocol of :mod:`qdcnn.experiments.protocol`.
+    training : TrainingOptions
+        Settings of frame methods (epochs, weights, threads).
+    use_cache : bool
+        Reuse cached lane features.
+    has_torch, has_gpu : bool or None
+        What ``all`` may include; ``None`` asks the installation.
+    """
+
+    data: str
+    methods: str = "all"
+    config: PipelineConfig = field(default_factory=PipelineConfig)
+    folds: int = 5
+    gap: int = 5
+    inner_folds: int = 3
+    training: TrainingOptions = field(default_factory=TrainingOptions)
+    use_cache: bool = True
+    has_torch: bool | None = None
+    has_gpu: bool | None = None
+
+    def __post_init__(self) -> None:
+        check_int("folds", self.folds, 2, 10_000)
+        check_int("gap", self.gap, 0, 10_000)
+        if self.inner_folds != 0:
+            check_int("inner_folds", self.inner_folds, 2, 100)
+
+
+@dataclass
+class EvaluationResult:
+    """Scores of every method on one dataset, and what was skipped."""
+
+    dataset: str
+    n_frames: int
+    protocol: dict[str, Any]
+    results: list[MethodResult] = field(default_factory=list)
+    failures: list[Failure] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every frame and method worked, 1 when some items failed."""
+        return 1 if self.failures else 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "dataset": self.dataset,
+            "n_frames": self.n_frames,
+            "protocol": self.protocol,
+            "results": [r.to_dict() for r in self.results],
+            "failures": [f.to_dict() for f in self.failures],
+            "notes": self.notes,
+        }
+
+
+def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> EvaluationResult:
+    """Evaluate the methods of ``spec`` on its dataset; each result is reported as it finishes."""
+    report = reporter or Reporter()
+    methods, notes = select_methods(
+        spec.methods,
+        has_torch=has_torch() if spec.has_torch is None else spec.has_torch,
+        has_gpu=has_gpu() if spec.has_gpu is None else spec.has_gpu,
+    )
+    for note in notes:
+        report.note(note)
+    frames = load_frameset(spec.data, seed=spec.config.seed)
+    ContiguousKFold(spec.folds, spec.gap).check(len(frames))
+    result = EvaluationResult(
+        frames.name,
+        len(frames),
+        {"folds": spec.folds, "gap": spec.gap, "inner_folds": spec.inner_folds},
+        notes=notes,
+    )
+    _add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
+    lane_methods = [m for m in methods if m.inputs == "lanes"]
+    if lane_methods:
+        lanes = _lane_data(spec, frames, lane_methods, report)
+        _add_failures(result, lanes.table.failures, report)
+        for m in lane_methods:
+            res = _evaluate_lane_method(spec, m, lanes)
+            result.results.append(res)
+            report.result(res.to_dict())
+    for m in (m for m in methods if m.inputs == "frames"):
+        res, failures = evaluate_frames(
+            m,
+            frames,
+            frames.labels(spec.config.labels),
+            config=spec.config,
+            options=spec.training,
+            folds=spec.folds,
+            gap=spec.gap,
+        )
+        _add_failures(result, failures, report)
+        result.results.append(res)
+        report.result(res.to_dict())
+    return result
+
+
+def _add_failures(result: EvaluationResult, failures: list[Failure], report: Reporter) -> None:
+    """Record and report the failures of items not failed already (by file)."""
+    seen = {f.file for f in result.failures}
+    for f in failures:
+        if f.file not in seen:
+            seen.add(f.file)
+            result.failures.append(f)
+            report.failure(f)
+
+
+def _lane_data(
+    spec: EvaluationSpec, frames: FrameSet, methods: list[DirectionMethod], report: Reporter
+) -> LaneData:
+    groupings = sorted({m.grouping for m in methods if m.grouping is not None})
+    with report.progress(len(frames), f"lane features ({frames.name})") as advance:
+        return load_lane_data(
+            frames, spec.config, groupings, use_cache=spec.use_cache, on_frame=advance
+        )
+
+
+def _evaluate_lane_method(
+    spec: EvaluationSpec, m: DirectionMethod, lanes: LaneData
+) -> MethodResult:
+    assert m.grouping is not None
+    res = evaluate_features(
+        m,
+        lanes.frames.name,
+        lanes.features(m.grouping),
+        lanes.y,
+        config=spec.config,
+        folds=spec.folds,
+        gap=spec.gap,
+        inner_folds=spec.inner_folds,
+        frames_without_lines=lanes.table.frames_without_lines(m.grouping),
+    )
+    res.extra["pipeline_ms_per_frame"] = 1e3 * lanes.table.seconds_per_frame
+    return res

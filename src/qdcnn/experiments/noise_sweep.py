@@ -43,13 +43,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter
 from sklearn.base import clone
-from sklearn.model_selection import GridSearchCV, KFold
+from sklearn.model_selection import GridSearchCV
 
 from qdcnn._threads import single_thread
 from qdcnn.config import PipelineConfig, ShadowConfig
 from qdcnn.data.labels import LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.evaluate import contiguous_folds, make_classifier
+from qdcnn.experiments.methods import build_uu, build_vqc
+from qdcnn.experiments.protocol import ContiguousKFold, fit_with_search, majority_baseline
 from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.direction import UUDirectionClassifier, check_features, rule
 from qdcnn.quantum.execute import run_probabilities
@@ -342,6 +343,7 @@ def fit_direction_model(
     *,
     seed: int = 0,
     inner_folds: int = 3,
+    gap: int = 0,
 ) -> Any:
     """The fitted estimator of ``kind`` (``"uu"`` or ``"vqc"``), hyperparameters chosen by CV.
 
@@ -349,14 +351,12 @@ def fit_direction_model(
     and grid of :func:`~qdcnn.experiments.evaluate.make_classifier`, an inner contiguous
     ``GridSearchCV`` when ``inner_folds >= 2``, refitted on all of ``X``.
     """
-    estimator, grid = make_classifier(kind, config, seed=seed)
-    if inner_folds >= 2 and grid and len(y) >= 2 * inner_folds:
-        search = GridSearchCV(
-            clone(estimator), grid, cv=KFold(inner_folds, shuffle=False), error_score=np.nan
-        )
-        search.fit(X, y)
-        return search.best_estimator_
-    return estimator.fit(X, y)
+    from qdcnn.experiments.methods import TrainingOptions
+
+    build = build_uu if kind == "uu" else build_vqc
+    estimator, grid = build(replace(config, seed=seed), TrainingOptions())
+    fitted, _ = fit_with_search(estimator, grid, X, y, inner_folds=inner_folds, gap=gap)
+    return fitted
 
 
 def fit_uu_under_noise(
@@ -612,9 +612,9 @@ def direction_sweep(
     for g, X in features.items():
         if X.ndim != 2 or X.shape[0] != n:
             raise InputError(f"features[{g}]", f"shape {X.shape} does not match {n} labels")
-    splits = contiguous_folds(n, folds, gap)
+    splits = list(ContiguousKFold(folds, gap).split(y))
     truth = np.concatenate([y[test] for _, test in splits])
-    majority = _majority_accuracy(y, splits)
+    majority = majority_baseline(y, splits)
     rows: list[SweepRow] = []
     with single_thread():
         for method in methods:
@@ -624,7 +624,13 @@ def direction_sweep(
                         train,
                         test,
                         fit_direction_model(
-                            method, X[train], y[train], cfg, seed=seed, inner_folds=inner_folds
+                            method,
+                            X[train],
+                            y[train],
+                            cfg,
+                            seed=seed,
+                            inner_folds=inner_folds,
+                            gap=gap,
                         ),
                     )
                     for train, test in splits
@@ -658,17 +664,6 @@ def direction_sweep(
                         if on_step:
                             on_step()
     return rows
-
-
-def _majority_accuracy(
-    y: NDArray[np.int64], splits: Sequence[tuple[NDArray[np.intp], NDArray[np.intp]]]
-) -> float:
-    """Accuracy over all test rows of predicting each fold's training majority class."""
-    hits = sum(
-        int(np.sum(y[test] == np.bincount(y[train], minlength=3).argmax()))
-        for train, test in splits
-    )
-    return hits / sum(len(test) for _, test in splits)
 
 
 # ---------------------------------------------------------------- shadow sweep

@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from qdcnn._optional import HAS_TORCH
+from qdcnn._optional import has_torch
 from qdcnn.data.frames import load_frameset
 from qdcnn.experiments.direction_model import default_config, train_direction_model
-from qdcnn.experiments.evaluate import QUANTUM_METHODS
 from qdcnn.experiments.features import compute_features
+from qdcnn.experiments.methods import get_method
 from qdcnn.pipeline import process_frame
 
 
@@ -60,12 +60,13 @@ def bench_pipeline(
     images = [test.image(i) for i in range(min(frames, len(test)))]
     rows = []
     for method in methods:
-        grouping, _ = QUANTUM_METHODS[method]
+        grouping = get_method(method).grouping
+        assert grouping is not None
         log(f"training {method}")
         table = compute_features(train, cfg, (grouping,))
         keep = table.readable
         model = train_direction_model(
-            method, table.features[grouping][keep], train.labels()[keep], cfg, data
+            method, table.features[grouping][keep], train.labels()[keep], cfg, data, inner_folds=0
         )
         rng = np.random.default_rng(seed)
         log(f"timing {method}")
@@ -100,7 +101,7 @@ def bench_pipeline(
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
         "pipeline": rows,
     }
-    if cnn and HAS_TORCH:
+    if cnn and has_torch():
         from qdcnn.models.training import inference_fps
 
         h, w = images[0].shape[:2]

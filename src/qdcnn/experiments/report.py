@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn._optional import HAS_AER
+from qdcnn._optional import has_module
 from qdcnn.config import PipelineConfig, ShadowConfig
 from qdcnn.data.images import write_image
 from qdcnn.vision.metrics import confusion_counts, shadow_scores
@@ -135,7 +135,7 @@ def timing_section(*, quick: bool, say: Say) -> Section:
     """Measured per-frame times and the labelled hardware-time estimates."""
     from qdcnn.experiments.shadow_bench import bench_shadows
 
-    aer = 20 if HAS_AER else 0
+    aer = 20 if has_module("qiskit_aer") else 0
     result = bench_shadows(
         frames=2 if quick else 4,
         repeats=2 if quick else 3,
@@ -158,7 +158,7 @@ def timing_section(*, quick: bool, say: Say) -> Section:
             f"<h3>{row['size']} ({row['blocks']} blocks), measured</h3>"
             + _table(["detector", "ms / frame"], rows)
         )
-    if not HAS_AER:
+    if not has_module("qiskit_aer"):
         parts.append(
             "<p>Aer timing skipped: qiskit-aer is not installed (pip install 'qdcnn[quantum]').</p>"
         )
@@ -177,9 +177,7 @@ def named_options_config(config: PipelineConfig) -> PipelineConfig:
     Road-centre features, colour Canny and no shadow removal
     (``qdcnn evaluate --features road-centre --edges rgb --no-shadow-removal``).
     """
-    from qdcnn.experiments.direction_model import with_lane_options
-
-    return with_lane_options(config, features="road-centre", edges="rgb", shadow_removal=False)
+    return config.with_lane_options(features="road-centre", edges="rgb", shadow_removal=False)
 
 
 def direction_section(out_dir: Path, *, n_frames: int, seed: int, say: Say) -> Section:
@@ -190,8 +188,9 @@ def direction_section(out_dir: Path, *, n_frames: int, seed: int, say: Say) -> S
     """
     from qdcnn.data.frames import load_frameset
     from qdcnn.experiments.direction_model import default_config
-    from qdcnn.experiments.evaluate import QUANTUM_METHODS, evaluate_features
+    from qdcnn.experiments.evaluate import evaluate_features
     from qdcnn.experiments.features import compute_features
+    from qdcnn.experiments.methods import get_method, method_names
     from qdcnn.pipeline import process_frame
     from qdcnn.vision.overlays import draw_lane_overlay
 
@@ -204,7 +203,9 @@ def direction_section(out_dir: Path, *, n_frames: int, seed: int, say: Say) -> S
         frames = load_frameset(f"synthetic:{preset}:{n_frames}", seed=seed)
         y = frames.labels(cfg.labels)
         tables = {mode: compute_features(frames, c) for mode, c in configs.items()}
-        for method, (grouping, kind) in QUANTUM_METHODS.items():
+        for method in method_names(inputs="lanes"):
+            grouping, kind = get_method(method).grouping, get_method(method).kind
+            assert grouping is not None
             # the named options' VQC grid (angle span x repetitions, 3 restarts) takes ~10x
             # longer, too slow for a demo; `qdcnn evaluate` runs it
             modes = ("paper", "named") if kind == "uu" else ("paper",)

@@ -331,6 +331,19 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
     [1, 0, 2]
     """
 
+    #: What a fitted classifier learned (saved in model files, :mod:`qdcnn.persistence`).
+    fitted_attributes: tuple[str, ...] = (
+        "centroid_",
+        "margin_",
+        "angle_params_",
+        "class_prior_",
+        "majority_class_",
+        "train_accuracy_",
+        "accuracy_grid_",
+        "classes_",
+        "n_features_in_",
+    )
+
     def __init__(
         self,
         straight_margin: float = _DEFAULTS.straight_margin,

@@ -396,6 +396,20 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
     n_features_in_ : int
     """
 
+    #: What a fitted classifier learned (saved in model files, :mod:`qdcnn.persistence`).
+    fitted_attributes: tuple[str, ...] = (
+        "weights_",
+        "initial_weights_",
+        "objective_history_",
+        "weight_history_",
+        "objective_",
+        "scaler_params_",
+        "class_prior_",
+        "majority_class_",
+        "classes_",
+        "n_features_in_",
+    )
+
     def __init__(
         self,
         feature_map_reps: int = _DEFAULTS.feature_map_reps,

@@ -1,0 +1,306 @@
+"""The direction-method registry: every left / straight / right method, declared once.
+
+A :class:`DirectionMethod` names a method, says what it reads (``"lanes"``: the lane
+features of one grouping; ``"frames"``: the RGB frames themselves), how to build its
+estimator and hyperparameter grid from a :class:`~qdcnn.config.PipelineConfig`, and what
+it needs (torch, a GPU). Every command (``evaluate``, ``train-direction``,
+``detect-lanes``, ``noise-sweep``, ``run``), the demo and the benchmarks read this table,
+so a new method is one :func:`register` call plus its estimator (any scikit-learn
+classifier of 0 = left, 1 = straight, 2 = right).
+
+Examples
+--------
+>>> get_method("kmeans-uu").grouping, get_method("kmeans-uu").kind
+('kmeans', 'uu')
+>>> [m for m in method_names() if m.startswith("image-split")]
+['image-split-uu', 'image-split-vqc']
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from sklearn.base import BaseEstimator
+
+from qdcnn.config import PipelineConfig
+from qdcnn.errors import ParameterError
+
+__all__ = [
+    "GROUPINGS",
+    "DirectionMethod",
+    "TrainingOptions",
+    "get_method",
+    "method_names",
+    "register",
+    "select_methods",
+    "unregister",
+]
+
+#: Lane groupings of the paper (Sec. II-A-3), in the paper's order.
+GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
+
+Grid = dict[str, list[Any]]
+
+
+@dataclass(frozen=True)
+class TrainingOptions:
+    """Settings of image-based methods (CNNs, hybrids); lane methods ignore them.
+
+    Attributes
+    ----------
+    epochs : int
+        Maximum training epochs (the paper: 25).
+    weights : path or None
+        Initial weights file (ImageNet ResNet-50 state dict), never downloaded.
+    threads : int or None
+        torch CPU threads (default: the CPUs this process may use).
+    progress : bool
+        Show training progress on stderr.
+    params : mapping
+        Further estimator parameters (for studies).
+    """
+
+    epochs: int = 25
+    weights: Path | None = None
+    threads: int | None = None
+    progress: bool = False
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, Grid]]
+
+
+@dataclass(frozen=True)
+class DirectionMethod:
+    """One direction method.
+
+    Attributes
+    ----------
+    name : str
+        Its name on the command line and in results.
+    inputs : {"lanes", "frames"}
+        Lane features of ``grouping``, or the frames.
+    build : callable
+        ``build(config, options) -> (estimator, grid)``: a fresh unfitted estimator and the
+        hyperparameter grid the inner contiguous CV chooses from (may be empty).
+    kind : str
+        Classifier family (``"uu"``, ``"vqc"``, ``"cnn"``, ...): noise sweeps group by it.
+    grouping : str or None
+        Lane grouping for ``inputs="lanes"``.
+    needs_torch : bool
+        Needs the ``dnn`` extra.
+    needs_gpu : bool
+        Too slow without a GPU: ``all`` leaves it out on a CPU-only machine (it still runs
+        when named).
+    quantum : bool
+        Has a simulated quantum circuit (noise sweeps apply to it).
+    summary : str
+        One line for listings and reports.
+    """
+
+    name: str
+    inputs: Literal["lanes", "frames"]
+    build: Builder
+    kind: str
+    grouping: str | None = None
+    needs_torch: bool = False
+    needs_gpu: bool = False
+    quantum: bool = False
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        if self.inputs not in ("lanes", "frames"):
+            raise ParameterError("inputs", self.inputs, "'lanes' or 'frames'")
+        if (self.inputs == "lanes") != (self.grouping is not None):
+            raise ParameterError(
+                "grouping", self.grouping, "a grouping exactly when inputs='lanes'"
+            )
+
+    def estimator(
+        self, config: PipelineConfig, options: TrainingOptions | None = None
+    ) -> tuple[BaseEstimator, Grid]:
+        """A fresh estimator of this method and its grid (see :attr:`build`)."""
+        return self.build(config, options or TrainingOptions())
+
+
+_REGISTRY: dict[str, DirectionMethod] = {}
+
+
+def register(method: DirectionMethod, *, replace: bool = False) -> DirectionMethod:
+    """Add ``method`` to the registry (``replace`` allows redefining a name)."""
+    if method.name in _REGISTRY and not replace:
+        raise ParameterError("method", method.name, "a name not registered yet")
+    if method.name == "all":
+        raise ParameterError("method", method.name, "a name other than 'all'")
+    _REGISTRY[method.name] = method
+    return method
+
+
+def unregister(name: str) -> None:
+    """Remove a method (for plug-ins and tests)."""
+    _REGISTRY.pop(name, None)
+
+
+def method_names(*, inputs: str | None = None) -> tuple[str, ...]:
+    """Registered names in registration order, optionally of one input kind."""
+    return tuple(n for n, m in _REGISTRY.items() if inputs is None or m.inputs == inputs)
+
+
+def get_method(name: str) -> DirectionMethod:
+    """The registered method ``name``; a :class:`ParameterError` lists the others."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ParameterError("method", name, "one of " + ", ".join(_REGISTRY)) from None
+
+
+def select_methods(
+    names: str | Sequence[str], *, has_torch: bool, has_gpu: bool
+) -> tuple[list[DirectionMethod], list[str]]:
+    """Methods for ``names`` (``"all"``, one name or a comma list) and notes on what was left out.
+
+    ``all`` leaves out methods that need torch when it is missing, and methods marked
+    ``needs_gpu`` when there is no GPU; each omission gets a note. A method named
+    explicitly is always returned (its estimator reports a missing extra itself).
+    """
+    items = names.split(",") if isinstance(names, str) else list(names)
+    wanted = [n.strip() for n in items if n.strip()]
+    if not wanted:
+        raise ParameterError("method", names, "a method name, a comma list or 'all'")
+    chosen: list[DirectionMethod] = []
+    notes: list[str] = []
+    for name in wanted:
+        if name != "all":
+            method = get_method(name)
+            if method not in chosen:
+                chosen.append(method)
+            continue
+        for method in _REGISTRY.values():
+            if method in chosen:
+                continue
+            if method.needs_torch and not has_torch:
+                notes.append(
+                    f"skipping {method.name}: torch is not installed (pip install 'qdcnn[dnn]')"
+                )
+            elif method.needs_gpu and not has_gpu:
+                notes.append(
+                    f"skipping {method.name}: no GPU, and its training takes tens of core-hours "
+                    f"on a CPU (ask for it alone: --method {method.name})"
+                )
+            else:
+                chosen.append(method)
+    return chosen, notes
+
+
+# ---------------------------------------------------------------- the paper's methods
+
+
+def _lane_columns(config: PipelineConfig) -> tuple[int, int] | None:
+    from qdcnn.vision.grouping import mode_columns
+
+    grouping = config.grouping
+    if grouping.features == "slopes" and not grouping.extra_features:
+        return None
+    return mode_columns(grouping.features, grouping.extra_features)
+
+
+def build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+    """The paper's UU-dagger rule on the two lane inputs; the grid is the angle map."""
+    from qdcnn.quantum.direction import UUDirectionClassifier
+
+    estimator = UUDirectionClassifier(
+        straight_margin=config.direction.straight_margin,
+        shots=config.direction.shots,
+        seed=config.seed,
+        feature_columns=_lane_columns(config),
+    )
+    return estimator, {"angle_map": ["arctan", "minmax"]}
+
+
+def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+    """The paper's 2-qubit VQC; the grid is the interpret map.
+
+    The named feature modes (not the paper's) add the angle span (1 or 0.5) and the feature
+    map's repetitions (1 or the configured value) to the grid and train from 3 starts
+    (``restarts=3``): on the paper's full span the ZZ map's phase reaches ``2 pi^2``, and
+    from one start COBYLA often ends worse than the majority class.
+    """
+    from qdcnn.quantum.vqc import VQCClassifier
+
+    paper = config.grouping.features == "slopes"
+    estimator = VQCClassifier(
+        feature_map_reps=config.vqc.feature_map_reps,
+        ansatz_reps=config.vqc.ansatz_reps,
+        maxiter=config.vqc.maxiter,
+        loss=config.vqc.loss,
+        shots=config.vqc.shots,
+        seed=config.seed,
+        feature_columns=_lane_columns(config),
+        restarts=1 if paper else 3,
+    )
+    grid: Grid = {"interpret": ["min2", "mod3"]}
+    if not paper:
+        grid["angle_span"] = [1.0, 0.5]
+        grid["feature_map_reps"] = sorted({config.vqc.feature_map_reps, 1})
+    return estimator, grid
+
+
+def _cnn_builder(arch: Literal["pilotnet", "resnet50"]) -> Builder:
+    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+        from qdcnn.models.training import CNNDirectionClassifier
+
+        estimator = CNNDirectionClassifier(
+            arch,
+            epochs=options.epochs,
+            weights=options.weights,
+            seed=config.seed,
+            progress=options.progress,
+            num_threads=options.threads,
+            **dict(options.params),
+        )
+        return estimator, {}
+
+    return build
+
+
+_CLASSIFIERS: dict[str, tuple[Builder, str]] = {
+    "uu": (build_uu, "the paper's UU-dagger rule on two lane inputs"),
+    "vqc": (build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
+}
+for _kind, (_build, _what) in _CLASSIFIERS.items():
+    for _grouping in GROUPINGS:
+        register(
+            DirectionMethod(
+                f"{_grouping}-{_kind}",
+                "lanes",
+                _build,
+                _kind,
+                grouping=_grouping,
+                quantum=True,
+                summary=f"{_what}, {_grouping} grouping",
+            )
+        )
+register(
+    DirectionMethod(
+        "dnn-pilotnet",
+        "frames",
+        _cnn_builder("pilotnet"),
+        "cnn",
+        needs_torch=True,
+        summary="PilotNet CNN (Bojarski et al. 2016), classical baseline",
+    )
+)
+register(
+    DirectionMethod(
+        "dnn-resnet50",
+        "frames",
+        _cnn_builder("resnet50"),
+        "cnn",
+        needs_torch=True,
+        needs_gpu=True,
+        summary="ResNet-50 CNN (the paper's DNN, 25 epochs), classical baseline",
+    )
+)

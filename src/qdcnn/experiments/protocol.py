@@ -1,0 +1,306 @@
+"""The one evaluation protocol: contiguous folds with a gap, inner model selection, scores.
+
+Frames of a recording are a video: neighbours are near duplicates, and direction
+labels come from steering smoothed over neighbouring frames. So every split here is a
+:class:`ContiguousKFold`: contiguous test blocks, with ``gap`` frames on each side of a
+block left out of training. The same splitter serves the outer folds, the inner
+hyperparameter search on the training folds (:func:`fit_with_search`, with the gap
+too) and any validation split taken from training frames.
+
+Scores (one definition everywhere)
+    *accuracy* is pooled over all test frames: correct test predictions over test
+    frames, every frame tested exactly once (:func:`pooled_accuracy`); the spread is the
+    standard deviation of the per-fold accuracies. The *majority baseline* predicts, in
+    each fold, the most frequent class of that fold's training frames, pooled the same way
+    (:func:`majority_baseline`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from sklearn.base import BaseEstimator, clone
+from sklearn.metrics import confusion_matrix, precision_recall_fscore_support
+from sklearn.model_selection import BaseCrossValidator, GridSearchCV
+
+from qdcnn._validation import check_int
+from qdcnn.data.labels import DIRECTIONS
+from qdcnn.errors import ParameterError
+
+__all__ = [
+    "ContiguousKFold",
+    "CrossValidation",
+    "MethodResult",
+    "cross_validate",
+    "fit_with_search",
+    "majority_baseline",
+    "pooled_accuracy",
+    "summarise",
+]
+
+Split = tuple[NDArray[np.intp], NDArray[np.intp]]
+N_CLASSES = len(DIRECTIONS)
+
+
+class ContiguousKFold(BaseCrossValidator):
+    """K contiguous test blocks; training leaves out ``gap`` frames on each side of a block.
+
+    Blocks are those of scikit-learn's ``KFold(n_splits, shuffle=False)``: sizes differ by
+    at most one frame and they cover every frame once, in order.
+
+    Parameters
+    ----------
+    n_splits : int
+        Number of folds, at least 2.
+    gap : int
+        Frames on each side of a test block that neither train nor test, at least 0 and
+        smaller than the shortest test block (so that training keeps most frames).
+
+    Examples
+    --------
+    >>> cv = ContiguousKFold(3, gap=1)
+    >>> [(train.tolist(), test.tolist()) for train, test in cv.split(range(9))]
+    [([4, 5, 6, 7, 8], [0, 1, 2]), ([0, 1, 7, 8], [3, 4, 5]), ([0, 1, 2, 3, 4], [6, 7, 8])]
+    """
+
+    def __init__(self, n_splits: int = 5, gap: int = 0) -> None:
+        self.n_splits = n_splits
+        self.gap = gap
+
+    def get_n_splits(self, X: object = None, y: object = None, groups: object = None) -> int:
+        return int(self.n_splits)
+
+    def check(self, n: int) -> None:
+        """Refuse a protocol that cannot be run honestly on ``n`` frames."""
+        check_int("folds", self.n_splits, 2, max(2, n))
+        gap = check_int("gap", self.gap, 0)
+        shortest = n // int(self.n_splits)
+        if gap >= shortest:
+            raise ParameterError(
+                "gap",
+                gap,
+                f"smaller than the shortest test block ({shortest} frames: {n} frames in "
+                f"{self.n_splits} folds)",
+            )
+
+    def split(
+        self, X: ArrayLike, y: ArrayLike | None = None, groups: ArrayLike | None = None
+    ) -> Iterator[Split]:
+        n = len(X)  # type: ignore[arg-type]
+        self.check(n)
+        sizes = np.full(int(self.n_splits), n // int(self.n_splits))
+        sizes[: n % int(self.n_splits)] += 1
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        idx = np.arange(n)
+        for start, size in zip(starts, sizes, strict=True):
+            lo, hi = start - int(self.gap), start + size - 1 + int(self.gap)
+            train = idx[(idx < lo) | (idx > hi)]
+            yield train, idx[start : start + size]
+
+
+def fit_with_search(
+    estimator: BaseEstimator,
+    grid: Mapping[str, Sequence[Any]],
+    X: ArrayLike,
+    y: NDArray[np.int64],
+    *,
+    inner_folds: int = 3,
+    gap: int = 0,
+) -> tuple[Any, dict[str, Any]]:
+    """Fit ``estimator``, first choosing its ``grid`` values by inner contiguous CV.
+
+    The search (``GridSearchCV`` over :class:`ContiguousKFold` ``(inner_folds, gap)`` on
+    ``X`` itself, accuracy as the score, refit on all of ``X``) runs when the grid is not
+    empty, ``inner_folds >= 2`` and every inner block is longer than the gap; otherwise the
+    estimator is fitted with its own parameters.
+
+    Returns
+    -------
+    fitted : estimator
+        The refitted best estimator (or the plainly fitted one).
+    chosen : dict
+        The chosen grid values (empty without a search).
+    """
+    n = len(y)
+    inner = ContiguousKFold(inner_folds, gap)
+    searchable = bool(grid) and inner_folds >= 2 and n // max(inner_folds, 1) > gap
+    if not searchable:
+        return clone(estimator).fit(X, y), {}
+    search = GridSearchCV(clone(estimator), dict(grid), cv=inner, error_score=np.nan)
+    search.fit(X, y)
+    return search.best_estimator_, dict(search.best_params_)
+
+
+@dataclass
+class CrossValidation:
+    """What :func:`cross_validate` produced: per fold the split, predictions and choices."""
+
+    splits: list[Split]
+    predictions: list[NDArray[np.int64]]
+    chosen: list[dict[str, Any]]
+    estimators: list[Any] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def check_training_classes(y: NDArray[np.int64], splits: Sequence[Split]) -> None:
+    """Every fold's training frames must hold at least two classes, or the fold is refused."""
+    for i, (train, _) in enumerate(splits):
+        present = np.unique(y[train])
+        if present.size < 2:
+            only = DIRECTIONS[int(present[0])] if present.size else "nothing"
+            raise ParameterError(
+                "folds",
+                len(splits),
+                f"folds whose training frames hold two classes or more (fold {i + 1} trains on "
+                f"'{only}' only: use fewer folds or more data)",
+            )
+
+
+def cross_validate(
+    build: Callable[[], tuple[BaseEstimator, Mapping[str, Sequence[Any]]]],
+    X: ArrayLike,
+    y: NDArray[np.int64],
+    *,
+    folds: int = 5,
+    gap: int = 5,
+    inner_folds: int = 3,
+    keep_estimators: bool = False,
+    on_fold: Callable[[int], None] | None = None,
+) -> CrossValidation:
+    """Train and test one method on each contiguous fold.
+
+    Parameters
+    ----------
+    build : callable
+        Returns a fresh ``(estimator, grid)`` (the method registry's
+        :meth:`~qdcnn.experiments.methods.DirectionMethod.build`).
+    X : array_like
+        Lane features ``(N, F)`` or frames ``(N, H, W, 3)``; indexed by row.
+    y : ndarray of int
+        Direction labels.
+    folds, gap, inner_folds : int
+        The protocol (module docstring); ``inner_folds < 2`` skips the inner search.
+    keep_estimators : bool
+        Keep each fold's fitted estimator (noise sweeps predict with them again).
+    on_fold : callable, optional
+        Called with the fold index after each fold.
+    """
+    y = np.asarray(y, dtype=np.int64)
+    splits = list(ContiguousKFold(folds, gap).split(y))
+    check_training_classes(y, splits)
+    x = np.asarray(X) if not isinstance(X, np.ndarray) else X
+    t0 = time.perf_counter()
+    out = CrossValidation(splits, [], [])
+    for i, (train, test) in enumerate(splits):
+        estimator, grid = build()
+        fitted, chosen = fit_with_search(
+            estimator, grid, x[train], y[train], inner_folds=inner_folds, gap=gap
+        )
+        out.predictions.append(np.asarray(fitted.predict(x[test]), dtype=np.int64))
+        out.chosen.append(chosen)
+        if keep_estimators:
+            out.estimators.append(fitted)
+        if on_fold:
+            on_fold(i)
+    out.seconds = time.perf_counter() - t0
+    return out
+
+
+def pooled_accuracy(
+    y: NDArray[np.int64], splits: Sequence[Split], predictions: Sequence[Any]
+) -> float:
+    """Correct test predictions over all test frames (each frame is tested once)."""
+    hits = sum(
+        int(np.sum(np.asarray(p) == y[test]))
+        for (_, test), p in zip(splits, predictions, strict=True)
+    )
+    return hits / max(sum(len(test) for _, test in splits), 1)
+
+
+def majority_baseline(y: NDArray[np.int64], splits: Sequence[Split]) -> float:
+    """Pooled accuracy of predicting each fold's training majority class."""
+    majority = [
+        np.full(len(test), np.bincount(y[train], minlength=N_CLASSES).argmax())
+        for train, test in splits
+    ]
+    return pooled_accuracy(y, splits, majority)
+
+
+@dataclass
+class MethodResult:
+    """Cross-validated accuracy of one method on one dataset (the ``--json`` object)."""
+
+    method: str
+    dataset: str
+    n: int
+    accuracy: float
+    accuracy_std: float
+    per_class: dict[str, dict[str, float]]
+    confusion: list[list[int]]
+    majority_baseline: float
+    frames_without_lines: int
+    seconds: float
+    fold_accuracies: list[float]
+    extra: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "dataset": self.dataset,
+            "n": self.n,
+            "accuracy": self.accuracy,
+            "accuracy_std": self.accuracy_std,
+            "per_class": self.per_class,
+            "confusion": self.confusion,
+            "majority_baseline": self.majority_baseline,
+            "frames_without_lines": self.frames_without_lines,
+            "seconds": self.seconds,
+            "fold_accuracies": self.fold_accuracies,
+            **self.extra,
+        }
+
+
+def summarise(
+    method: str,
+    dataset: str,
+    y: NDArray[np.int64],
+    cv: CrossValidation,
+    *,
+    frames_without_lines: int = 0,
+    extra: Mapping[str, Any] | None = None,
+) -> MethodResult:
+    """Fold predictions -> pooled accuracy, fold spread, per-class scores, pooled confusion."""
+    accs = [
+        float(np.mean(p == y[test])) for (_, test), p in zip(cv.splits, cv.predictions, strict=True)
+    ]
+    truth = np.concatenate([y[test] for _, test in cv.splits])
+    pred = np.concatenate(cv.predictions)
+    p, r, f, s = precision_recall_fscore_support(truth, pred, labels=[0, 1, 2], zero_division=0)
+    per_class = {
+        name: {
+            "precision": float(p[i]),
+            "recall": float(r[i]),
+            "f1": float(f[i]),
+            "support": int(s[i]),
+        }
+        for i, name in enumerate(DIRECTIONS)
+    }
+    return MethodResult(
+        method,
+        dataset,
+        int(truth.size),
+        pooled_accuracy(y, cv.splits, cv.predictions),
+        float(np.std(accs)),
+        per_class,
+        confusion_matrix(truth, pred, labels=[0, 1, 2]).tolist(),
+        majority_baseline(y, cv.splits),
+        frames_without_lines,
+        cv.seconds,
+        accs,
+        dict(extra or {}),
+    )
