@@ -309,9 +309,9 @@ def estimator_state(
         elif isinstance(value, np.ndarray):
             forms[name], arrays[name] = "array", value
         elif isinstance(value, int | np.integer):
-            forms[name], arrays[name] = "int", np.asarray(value, dtype=np.int64)
+            forms[name], arrays[name] = "int", np.asarray([value], dtype=np.int64)
         elif isinstance(value, float | np.floating):
-            forms[name], arrays[name] = "float", np.asarray(value, dtype=np.float64)
+            forms[name], arrays[name] = "float", np.asarray([value], dtype=np.float64)
         elif isinstance(value, tuple):
             forms[name], arrays[name] = "tuple", np.asarray(value, dtype=np.float64)
         elif isinstance(value, list) and all(isinstance(v, np.ndarray) for v in value):
@@ -355,13 +355,20 @@ def restore_estimator_state(
         a = arrays[name]
         converters: dict[str, Any] = {
             "array": lambda x: x,
-            "int": lambda x: int(x),
-            "float": lambda x: float(x),
+            "int": lambda x: int(x.reshape(-1)[0]) if x.size == 1 else _bad_scalar(x),
+            "float": lambda x: float(x.reshape(-1)[0]) if x.size == 1 else _bad_scalar(x),
             "tuple": lambda x: tuple(float(v) for v in x),
             "list": lambda x: [float(v) for v in x],
             "array-list": lambda x: [row.copy() for row in x],
         }
         if form not in converters:
             raise InputError(source, f"fitted attribute {name!r} has an unknown form {form!r}")
-        setattr(estimator, name, converters[form](a))
+        try:
+            setattr(estimator, name, converters[form](a))
+        except (TypeError, ValueError) as exc:
+            raise InputError(source, f"fitted attribute {name!r} is damaged ({exc})") from None
     return estimator
+
+
+def _bad_scalar(a: NDArray[Any]) -> Any:
+    raise ValueError(f"a scalar is stored as shape {a.shape}")

@@ -1,7 +1,8 @@
-"""Contiguous folds, majority baseline and result bookkeeping of the evaluation harness."""
+"""run_evaluation and evaluate_features: every method through the one protocol."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -9,64 +10,9 @@ import pytest
 
 from qdcnn.config import GroupingConfig, PipelineConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.evaluate import (
-    QUANTUM_METHODS,
-    contiguous_folds,
-    evaluate_features,
-    majority_accuracy,
-    make_classifier,
-    summarise,
-)
-
-
-@pytest.mark.parametrize(("n", "k", "gap"), [(100, 5, 0), (103, 4, 5), (50, 10, 2)])
-def test_folds_are_contiguous_cover_everything_and_respect_the_gap(
-    n: int, k: int, gap: int
-) -> None:
-    folds = contiguous_folds(n, k, gap)
-    assert len(folds) == k
-    tests = np.concatenate([t for _, t in folds])
-    np.testing.assert_array_equal(np.sort(tests), np.arange(n))
-    for train, test in folds:
-        np.testing.assert_array_equal(test, np.arange(test[0], test[-1] + 1))  # one block
-        dist = np.min(np.abs(train[:, None] - test[None, :]), axis=1)
-        assert dist.min() > gap  # no training frame within `gap` of the test block
-        assert len(train) + len(test) + min(gap, test[0]) + min(gap, n - 1 - test[-1]) == n
-
-
-def test_bad_fold_counts() -> None:
-    with pytest.raises(ParameterError, match="folds=1 is invalid"):
-        contiguous_folds(10, 1)
-    with pytest.raises(ParameterError, match="folds=11 is invalid"):
-        contiguous_folds(10, 11)
-
-
-def test_majority_baseline_uses_training_majority() -> None:
-    assert majority_accuracy(np.array([0, 0, 1]), np.array([0, 1, 1, 1])) == 0.25
-
-
-def test_summarise_known_answer() -> None:
-    y = np.array([0, 0, 1, 1, 2, 2])
-    preds = [(np.array([0, 1, 2]), np.array([0, 1, 1])), (np.array([3, 4, 5]), np.array([1, 2, 0]))]
-    r = summarise(
-        "image-split-uu", "toy", y, preds, [0.5, 0.0], frames_without_lines=1, seconds=0.1
-    )
-    assert r.accuracy == pytest.approx((2 / 3 + 2 / 3) / 2)
-    assert r.confusion == [[1, 1, 0], [0, 2, 0], [1, 0, 1]]
-    assert r.per_class["left"]["recall"] == 0.5
-    assert r.majority_baseline == 0.25
-    assert set(r.to_dict()) >= {
-        "method",
-        "dataset",
-        "n",
-        "accuracy",
-        "accuracy_std",
-        "per_class",
-        "confusion",
-        "majority_baseline",
-        "frames_without_lines",
-        "seconds",
-    }
+from qdcnn.experiments.evaluate import EvaluationSpec, evaluate_features, run_evaluation
+from qdcnn.experiments.methods import get_method
+from qdcnn.experiments.reporting import Collector
 
 
 def test_evaluate_learns_separable_features(rng: np.random.Generator) -> None:
@@ -86,16 +32,11 @@ def test_single_class_labels_are_an_error() -> None:
         evaluate_features("kmeans-vqc", "flat", np.zeros((20, 2)), np.ones(20, np.int64))
 
 
-def test_paper_has_six_quantum_methods() -> None:
-    assert len(QUANTUM_METHODS) == 6
-    assert {k for _, k in QUANTUM_METHODS.values()} == {"uu", "vqc"}
-
-
 def test_paper_mode_keeps_the_paper_grids_and_reads_all_columns() -> None:
-    uu, uu_grid = make_classifier("uu", PipelineConfig())
+    uu, uu_grid = get_method("image-split-uu").estimator(PipelineConfig())
     assert uu.get_params()["feature_columns"] is None
     assert uu_grid == {"angle_map": ["arctan", "minmax"]}
-    vqc, vqc_grid = make_classifier("vqc", PipelineConfig())
+    vqc, vqc_grid = get_method("image-split-vqc").estimator(PipelineConfig())
     assert vqc.get_params()["feature_columns"] is None and vqc.get_params()["restarts"] == 1
     assert vqc_grid == {"interpret": ["min2", "mod3"]}
 
@@ -113,10 +54,10 @@ def test_other_modes_pick_their_columns_and_widen_the_vqc_grid(
     mode: str, extras: tuple[str, ...], columns: tuple[int, int]
 ) -> None:
     cfg = replace(PipelineConfig(), grouping=GroupingConfig(features=mode, extra_features=extras))
-    uu, uu_grid = make_classifier("uu", cfg)
+    uu, uu_grid = get_method("kmeans-uu").estimator(cfg)
     assert uu.get_params()["feature_columns"] == columns
     assert uu_grid == {"angle_map": ["arctan", "minmax"]}
-    vqc, grid = make_classifier("vqc", cfg)
+    vqc, grid = get_method("kmeans-vqc").estimator(cfg)
     assert vqc.get_params()["feature_columns"] == columns
     if mode == "slopes":
         assert grid == {"interpret": ["min2", "mod3"]}
@@ -147,3 +88,53 @@ def test_evaluation_reads_only_the_mode_columns(rng: np.random.Generator) -> Non
     paper = evaluate_features("image-split-uu", "toy", X[:, :2], y, folds=5, gap=2)
     mode = evaluate_features("image-split-uu", "toy", X, y, config=cfg, folds=5, gap=2)
     assert paper.accuracy < 0.6 < 0.9 < mode.accuracy
+
+
+def test_run_evaluation_reports_each_method_as_it_finishes(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    spec = EvaluationSpec(
+        "synthetic:track2:120", "image-split-uu,kmeans-uu", folds=3, gap=2, has_torch=False
+    )
+    collected = Collector()
+    result = run_evaluation(spec, collected)
+    assert [r.method for r in result.results] == ["image-split-uu", "kmeans-uu"]
+    assert [r["method"] for r in collected.results] == ["image-split-uu", "kmeans-uu"]
+    assert result.exit_code == 0 and result.n_frames == 120
+    first = result.results[0]
+    assert first.n == 120 and len(first.fold_accuracies) == 3
+    # pooled accuracy: correct test frames over all test frames
+    correct = sum(first.confusion[i][i] for i in range(3))
+    assert first.accuracy == pytest.approx(correct / 120)
+    json.dumps(result.to_dict())  # plain JSON values only
+
+
+def test_run_evaluation_all_without_torch_notes_what_it_left_out(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    spec = EvaluationSpec("synthetic:track2:200", "all", folds=2, gap=2, has_torch=False)
+    collected = Collector()
+    result = run_evaluation(spec, collected)
+    assert len(result.results) == 6
+    assert any("skipping dnn-pilotnet: torch is not installed" in n for n in collected.notes)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"gap": -1}, "gap=-1 is invalid"),
+        ({"folds": 1}, "folds=1 is invalid"),
+        ({"inner_folds": 1}, "inner_folds=1 is invalid"),
+        ({"gap": True}, "gap=True is invalid"),
+    ],
+)
+def test_spec_refuses_dishonest_protocols(changes, message) -> None:
+    with pytest.raises(ParameterError, match=message):
+        EvaluationSpec("synthetic:track2:120", **changes)
+
+
+def test_a_gap_as_long_as_a_fold_is_refused(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    spec = EvaluationSpec("synthetic:track2:100", "image-split-uu", folds=5, gap=20)
+    with pytest.raises(
+        ParameterError, match="gap=20 is invalid: smaller than the shortest test block"
+    ):
+        run_evaluation(spec)

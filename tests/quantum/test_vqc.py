@@ -25,7 +25,9 @@ from qdcnn.quantum.vqc import (
     make_sampler_qnn,
 )
 
-needs_qiskit_ml = pytest.mark.skipif(not has_module("qiskit_machine_learning"), reason="qiskit-machine-learning missing")
+needs_qiskit_ml = pytest.mark.skipif(
+    not has_module("qiskit_machine_learning"), reason="qiskit-machine-learning missing"
+)
 
 
 def road_slopes(

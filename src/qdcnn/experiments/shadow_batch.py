@@ -1,4 +1,8 @@
-"""Shadow detection and scoring over files and folders (``detect-shadows``, ``score-shadows``)."""
+"""Shadow detection, scoring and training over files and folders.
+
+The runners of ``qdcnn detect-shadows`` (:func:`run_shadow_detection`), ``score-shadows``
+(:func:`score_folders`) and ``train-shadows`` (:func:`train_shadows`).
+"""
 
 from __future__ import annotations
 
@@ -10,13 +14,15 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn._validation import check_int, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import ShadowConfig
 from qdcnn.data.images import list_images, read_image, read_mask, write_mask
-from qdcnn.data.shadow_set import index_by_stem
-from qdcnn.errors import InputError
+from qdcnn.data.shadow_set import index_by_stem, load_shadow_set
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.experiments.reporting import Reporter
 from qdcnn.quantum.sampling import as_generator
-from qdcnn.vision.detectors import check_method, detect_shadows
+from qdcnn.vision.detectors import QUANTUM_DETECTORS, check_method, detect_shadows
 from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
 from qdcnn.vision.shadows import ShadowModel
 
@@ -143,3 +149,177 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
 def median_seconds(records: Sequence[MaskRecord]) -> float | None:
     """Median detection time of the records, or ``None`` when there are none."""
     return float(np.median([r.seconds for r in records])) if records else None
+
+
+# ---------------------------------------------------------------- runners
+
+
+@dataclass(frozen=True)
+class ShadowDetectionSpec:
+    """What ``qdcnn detect-shadows`` runs.
+
+    Attributes
+    ----------
+    paths : sequence of path
+        Image files and/or folders of images.
+    out : Path
+        Folder for ``<stem>_mask.png`` files.
+    method : str
+        A shadow detector of :data:`qdcnn.vision.detectors.SHADOW_DETECTORS`.
+    config : ShadowConfig
+        UU-dagger settings (shots, threshold, centroid, calibration classes).
+    model : Path or None
+        A model file from ``train-shadows`` (UU-dagger methods).
+    backend : {"numpy", "aer"}
+    seed : int
+        Seed of shot sampling.
+    """
+
+    paths: tuple[Path, ...]
+    out: Path
+    method: str = "uu"
+    config: ShadowConfig = field(default_factory=ShadowConfig)
+    model: Path | None = None
+    backend: str = "numpy"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        from qdcnn.quantum.execute import check_backend
+
+        check_method(self.method)
+        check_backend(self.backend)
+        check_seed("seed", self.seed)
+
+
+@dataclass
+class ShadowDetectionResult:
+    """Masks written, images that failed, and files passed over."""
+
+    method: str
+    out: Path
+    shots: int | None
+    records: list[MaskRecord] = field(default_factory=list)
+    failures: list[Failure] = field(default_factory=list)
+    skipped: list[Path] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failures or not self.records else 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "summary": True,
+            "method": self.method,
+            "n_images": len(self.records),
+            "n_failed": len(self.failures),
+            "failures": [f.to_dict() for f in self.failures],
+            "skipped": [str(p) for p in self.skipped],
+            "median_seconds": median_seconds(self.records),
+            "shots": self.shots,
+            "out": str(self.out),
+        }
+
+
+def run_shadow_detection(
+    spec: ShadowDetectionSpec, reporter: Reporter | None = None
+) -> ShadowDetectionResult:
+    """Detect shadows in every image of ``spec``; each mask is written and reported as it ends."""
+    report = reporter or Reporter()
+    model = ShadowModel.load(spec.model) if spec.model else None
+    plan = plan_detection(spec.paths)
+    quantum = spec.method in QUANTUM_DETECTORS
+    result = ShadowDetectionResult(
+        spec.method, spec.out, spec.config.shots if quantum else None, skipped=plan.skipped
+    )
+    for f in plan.failures:
+        result.failures.append(f)
+        report.failure(f)
+    items = detect_files(
+        plan.images,
+        spec.method,
+        spec.out,
+        spec.config,
+        model=model,
+        backend=spec.backend,
+        seed=spec.seed,
+    )
+    with report.progress(len(plan.images), f"detect-shadows {spec.method}") as advance:
+        for item in items:
+            if isinstance(item, MaskRecord):
+                result.records.append(item)
+                report.result(item.to_dict())
+            else:
+                result.failures.append(item)
+                report.failure(item)
+            advance()
+    return result
+
+
+@dataclass(frozen=True)
+class ShadowTrainingSpec:
+    """What ``qdcnn train-shadows`` runs.
+
+    One feature and one centroid is the paper's model (centroid by the propagation
+    algorithm, threshold chosen on the training set from
+    :data:`~qdcnn.config.SHADOW_THRESHOLD_GRID`); several features or centroids train the
+    multi-centroid model (not the paper's).
+    """
+
+    data: Path
+    out: Path
+    features: tuple[str, ...] = ("intensity",)
+    centroids: int = 1
+    search_threshold: bool = True
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        from qdcnn.vision.shadows import FEATURES
+
+        names = self.features
+        if not names or any(f not in FEATURES for f in names) or len(set(names)) != len(names):
+            raise ParameterError("features", ",".join(names), "intensity and/or chromaticity")
+        check_int("centroids", self.centroids, 1, 8)
+        check_seed("seed", self.seed)
+
+
+@dataclass
+class ShadowTrainingResult:
+    """The trained shadow model, where it went, and the image/mask pairs left out."""
+
+    model: ShadowModel
+    path: Path
+    failures: list[Failure]
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failures else 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": str(self.path),
+            **self.model.to_dict(),
+            "failures": [f.to_dict() for f in self.failures],
+        }
+
+
+def train_shadows(
+    spec: ShadowTrainingSpec, reporter: Reporter | None = None
+) -> ShadowTrainingResult:
+    """Train a UU-dagger shadow model on a shadow set and save it."""
+    from qdcnn.config import SHADOW_THRESHOLD_GRID
+    from qdcnn.vision.shadow_training import train_multi_shadow_model, train_shadow_model
+
+    report = reporter or Reporter()
+    images, masks, failures = load_shadow_set(spec.data)
+    for f in failures:
+        report.failure(f)
+    cfg = ShadowConfig(feature=spec.features[0], shots=None)  # type: ignore[arg-type]
+    if len(spec.features) == 1 and spec.centroids == 1:
+        grid = SHADOW_THRESHOLD_GRID if spec.search_threshold else None
+        model = train_shadow_model(images, masks, cfg, thresholds=grid)
+    else:
+        model = train_multi_shadow_model(
+            images, masks, cfg, features=spec.features, n_centroids=spec.centroids, seed=spec.seed
+        )
+    path = model.save(spec.out)
+    return ShadowTrainingResult(model, Path(path), failures)

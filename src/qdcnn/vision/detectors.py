@@ -13,15 +13,24 @@ from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.vision.baselines import detect_cbs, detect_ibt, detect_lbp
 from qdcnn.vision.shadows import ShadowModel, detect_shadows_uu
 
-#: Method names used on the command line and in results.
-SHADOW_METHODS: tuple[str, ...] = ("uu", "uu-chroma", "ibt", "cbs", "lbp")
-QUANTUM_METHODS = frozenset({"uu", "uu-chroma"})
+#: The shadow-detector registry: name -> what it is (command line and results use the names).
+SHADOW_DETECTORS: dict[str, str] = {
+    "uu": "the paper's UU-dagger fidelity test on block intensity (quantum)",
+    "uu-chroma": "the UU-dagger fidelity test on block chromaticity (quantum)",
+    "ibt": "intensity-based thresholding (classical baseline)",
+    "cbs": "chromaticity-based shadow detection (classical baseline)",
+    "lbp": "local binary pattern texture detector (classical baseline)",
+}
+#: The names, in registry order.
+SHADOW_METHODS: tuple[str, ...] = tuple(SHADOW_DETECTORS)
+#: The detectors with a simulated quantum circuit.
+QUANTUM_DETECTORS = frozenset({"uu", "uu-chroma"})
 
 
 def check_method(method: str) -> str:
     """Return ``method`` if it is a known shadow detector, else raise :class:`ParameterError`."""
     if method not in SHADOW_METHODS:
-        raise ParameterError("method", method, "one of " + ", ".join(SHADOW_METHODS))
+        raise ParameterError("method", method, "one of " + ", ".join(SHADOW_DETECTORS))
     return method
 
 
@@ -50,7 +59,7 @@ def detect_shadows(
         Passed to the UU-dagger detector.
     """
     check_method(method)
-    if method in QUANTUM_METHODS:
+    if method in QUANTUM_DETECTORS:
         cfg = config or ShadowConfig()
         if method == "uu-chroma":
             cfg = replace(cfg, feature="chromaticity")

@@ -298,7 +298,7 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
         [
             "train-direction",
             "--data",
-            "synthetic:track2:60",
+            "synthetic:track2:100",
             "--method",
             "kmeans-uu",
             "--features",
@@ -312,7 +312,7 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
         ],
     )
     assert res.exit_code == 0, res.stderr
-    assert json.loads(res.stdout)["n"] == 60
+    assert json.loads(res.stdout)["n"] == 100
     lanes = DirectionModel.load(model).config.lanes
     assert lanes.edge_channels == "rgb" and not lanes.remove_shadows
     res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(tmp_path)])
@@ -348,16 +348,16 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
 ) -> None:
     monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
     args = ["evaluate", "--data", "synthetic:track2:200", "--method", "all", "--folds", "2"]
-    monkeypatch.setattr("qdcnn.cli._has_torch", lambda: False)
+    monkeypatch.setattr("qdcnn.experiments.evaluate.has_torch", lambda: False)
     res = runner.invoke(app, [*args, "--json"])
     assert res.exit_code == 0, res.stderr
-    assert "note: skipping dnn-* methods: torch is not installed" in res.stderr
+    assert "note: skipping dnn-pilotnet: torch is not installed" in res.stderr
     methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
     assert len(methods) == 6 and not any(m.startswith("dnn-") for m in methods)
     if importlib.util.find_spec("torch") is None:
         return
-    monkeypatch.setattr("qdcnn.cli._has_torch", lambda: True)
-    monkeypatch.setattr("qdcnn.cli._has_gpu", lambda: False)
+    monkeypatch.setattr("qdcnn.experiments.evaluate.has_torch", lambda: True)
+    monkeypatch.setattr("qdcnn.experiments.evaluate.has_gpu", lambda: False)
     res = runner.invoke(app, [*args, "--epochs", "1", "--threads", "1", "--json"])
     assert res.exit_code == 0, res.stderr
     assert "note: skipping dnn-resnet50: no GPU" in res.stderr

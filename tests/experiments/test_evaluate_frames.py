@@ -1,4 +1,4 @@
-"""evaluate_cnn: the CNN row under the quantum methods' folds, with bad frames listed."""
+"""evaluate_frames: the CNN row under the quantum methods' folds, with bad frames listed."""
 
 from __future__ import annotations
 
@@ -10,10 +10,11 @@ import pytest
 torch = pytest.importorskip("torch")
 cv2 = pytest.importorskip("cv2")
 
-from qdcnn.data.frames import stack_images  # noqa: E402
-from qdcnn.experiments.datasets import FrameSet  # noqa: E402
-from qdcnn.experiments.evaluate import contiguous_folds  # noqa: E402
-from qdcnn.experiments.evaluate_dnn import evaluate_cnn  # noqa: E402
+from qdcnn.config import PipelineConfig  # noqa: E402
+from qdcnn.data.frames import FrameSet, stack_images  # noqa: E402
+from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
+from qdcnn.experiments.methods import TrainingOptions  # noqa: E402
+from qdcnn.experiments.protocol import ContiguousKFold  # noqa: E402
 
 
 def lean_frame(label: int, rng: np.random.Generator, h: int = 40, w: int = 80) -> np.ndarray:
@@ -62,25 +63,25 @@ def test_load_images_lists_corrupt_and_odd_sized_frames(tmp_path: Path) -> None:
 
 def test_cnn_row_uses_the_same_folds_and_learns(tmp_path: Path) -> None:
     frames, labels = recording(tmp_path, 120, {5: "corrupt"})
-    res = evaluate_cnn(
+    options = TrainingOptions(
+        epochs=6, threads=1, params={"lr_schedule": "constant", "val_fraction": 0.0}
+    )
+    res, failures = evaluate_frames(
         "dnn-pilotnet",
         frames,
         labels,
+        config=PipelineConfig(seed=1),
+        options=options,
         folds=3,
         gap=2,
-        epochs=6,
-        seed=1,
-        progress=False,
-        num_threads=1,
-        params={"lr_schedule": "constant", "val_fraction": 0.0},
     )
     assert res.method == "dnn-pilotnet" and res.dataset == "toy"
-    assert [Path(f.file).name for f in res.extra["failures"]] == ["f005.png"]
+    assert [Path(f.file).name for f in failures] == ["f005.png"]
     assert res.extra["epochs_run"] == [6, 6, 6]
     assert res.extra["settings"]["lr_schedule"] == "constant"
     assert res.extra["settings"]["num_threads"] == 1
     # 119 readable frames: test blocks are the quantum methods' contiguous folds
-    assert len(contiguous_folds(119, 3, 2)) == 3
+    assert len(list(ContiguousKFold(3, 2).split(range(119)))) == 3
     assert int(np.sum(res.confusion)) == 119
     # blocks of one label: the majority of the training part is a poor guess
     assert res.accuracy > res.majority_baseline + 0.2

@@ -10,7 +10,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from qdcnn.cli_noise import circuit_cmd, noise_sweep_cmd, parse_angle
+from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd, parse_angle
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise_sweep import synthetic_shadow_set

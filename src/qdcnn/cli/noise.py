@@ -22,7 +22,8 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from qdcnn.cli_common import JsonOpt, ProgressBar, emit, fail_on_error, out, report_error
+from qdcnn.cli._common import CliReporter, JsonOpt, emit, out, report_error
+from qdcnn.cli._common import fail as fail_on_error
 from qdcnn.errors import ParameterError, QdcnnError
 
 # ---------------------------------------------------------------- noise-sweep
@@ -208,17 +209,15 @@ def noise_sweep_cmd(
             assert data is not None
             from qdcnn.data.frames import load_frameset
             from qdcnn.data.labels import check_labels_usable
-            from qdcnn.experiments.evaluate import contiguous_folds
             from qdcnn.experiments.features import compute_features
+            from qdcnn.experiments.protocol import ContiguousKFold
 
             frames = load_frameset(data, seed=seed)
             for problem in frames.problems:
                 report_error(str(problem))
-            contiguous_folds(len(frames), folds, gap)  # checks folds and gap before any work
-            with ProgressBar(len(frames), f"lane features ({frames.name})") as bar:
-                table = compute_features(
-                    frames, cfg, groupings, use_cache=cache, on_frame=bar.advance
-                )
+            ContiguousKFold(folds, gap).check(len(frames))  # checks folds and gap before any work
+            with CliReporter(False).progress(len(frames), f"lane features ({frames.name})") as bar:
+                table = compute_features(frames, cfg, groupings, use_cache=cache, on_frame=bar)
             failures.extend(table.failures)
             keep = table.readable
             labels = frames.labels(cfg.labels)[keep]
@@ -226,7 +225,7 @@ def noise_sweep_cmd(
             dataset = frames.name
             protocol.update(folds=folds, gap=gap, inner_folds=inner_folds)
             total = len(direction) * len(groupings) * n_points
-            with ProgressBar(total, "noise sweep") as bar:
+            with CliReporter(False).progress(total, "noise sweep") as bar:
                 rows += ns.direction_sweep(
                     {g: table.features[g][keep] for g in groupings},
                     labels,
@@ -241,7 +240,7 @@ def noise_sweep_cmd(
                     shots=shots,
                     readout=readout,
                     seed=seed,
-                    on_step=bar.advance,
+                    on_step=bar,
                 )
         if ns.SHADOW_METHOD in method_list:
             if shadow_set is not None:
@@ -255,7 +254,7 @@ def noise_sweep_cmd(
                 shadow_name = "synthetic-track2-scenes"
             tr, te = ns.split_train_test(len(images))
             protocol.update(shadow_train=tr.stop - tr.start, shadow_test=te.stop - te.start)
-            with ProgressBar(n_points, "shadow noise sweep") as bar:
+            with CliReporter(False).progress(n_points, "shadow noise sweep") as bar:
                 shadow_rows, _ = ns.shadow_sweep(
                     images[tr],
                     masks[tr],
@@ -268,7 +267,7 @@ def noise_sweep_cmd(
                     shots=shots,
                     readout=readout,
                     seed=seed,
-                    on_step=bar.advance,
+                    on_step=bar,
                 )
             rows += shadow_rows
         result = ns.NoiseSweepResult(

@@ -1,0 +1,5 @@
+"""``python -m qdcnn``: the command line."""
+
+from qdcnn.cli import main
+
+main()

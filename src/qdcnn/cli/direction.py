@@ -1,0 +1,217 @@
+"""``evaluate``, ``train-direction`` and ``detect-lanes``: lane lines to a direction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.config import PipelineConfig
+from qdcnn.errors import ParameterError, QdcnnError
+from qdcnn.experiments.detect_lanes import DetectLanesResult, DetectLanesSpec, detect_lanes
+from qdcnn.experiments.direction_model import TrainDirectionSpec, train_direction
+from qdcnn.experiments.evaluate import EvaluationResult, EvaluationSpec, run_evaluation
+from qdcnn.experiments.methods import TrainingOptions
+
+DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
+FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
+GapOpt = Annotated[
+    int, typer.Option(help="Frames left out of training on each side of a test block.")
+]
+InnerOpt = Annotated[
+    int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
+]
+LanesOpt = Annotated[
+    str, typer.Option(help="Lane settings: udacity (1 smoothing pass) | paper (30).")
+]
+EpochsOpt = Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 25).")]
+WeightsOpt = Annotated[
+    Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
+]
+SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
+CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
+FeaturesOpt = Annotated[
+    str,
+    typer.Option(
+        help="Two classifier inputs: slopes (the paper) | far-offsets | road-centre"
+        " | vanishing-points."
+    ),
+]
+EdgesOpt = Annotated[
+    str, typer.Option(help="What Canny sees: grey (the paper) | rgb (colour Canny).")
+]
+ShadowRemovalOpt = Annotated[
+    bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
+]
+ThreadsOpt = Annotated[
+    int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
+]
+
+
+def pipeline_config(
+    lanes: str, seed: int, features: str, edges: str, shadow_removal: bool
+) -> PipelineConfig:
+    """The config of the lane options shared by ``evaluate`` and ``train-direction``."""
+    if lanes not in ("udacity", "paper"):
+        raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
+    base = PipelineConfig.preset(lanes, seed=seed)
+    return base.with_lane_options(features=features, edges=edges, shadow_removal=shadow_removal)
+
+
+def training_options(
+    epochs: int, weights: Path | None, threads: int | None, progress: bool
+) -> TrainingOptions:
+    if threads is not None and threads < 1:
+        raise ParameterError("threads", threads, "a positive integer")
+    return TrainingOptions(epochs=epochs, weights=weights, threads=threads, progress=progress)
+
+
+def evaluate_cmd(
+    data: DataOpt,
+    method: Annotated[
+        str, typer.Option(help="A method, a comma list or 'all' (the paper's table).")
+    ] = "all",
+    folds: FoldsOpt = 5,
+    gap: GapOpt = 5,
+    inner_folds: InnerOpt = 3,
+    lanes: LanesOpt = "udacity",
+    epochs: EpochsOpt = 25,
+    weights: WeightsOpt = None,
+    seed: SeedOpt = 0,
+    cache: CacheOpt = True,
+    features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
+    threads: ThreadsOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    try:
+        spec = EvaluationSpec(
+            data,
+            method,
+            pipeline_config(lanes, seed, features, edges, shadow_removal),
+            folds,
+            gap,
+            inner_folds,
+            training_options(epochs, weights, threads, progress=not as_json),
+            use_cache=cache,
+        )
+        result = run_evaluation(spec, CliReporter(as_json))
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    if as_json and result.failures:
+        emit({"summary": True, "failures": [f.to_dict() for f in result.failures]})
+    elif not as_json:
+        out.print(_evaluation_table(result))
+    raise typer.Exit(result.exit_code)
+
+
+def _evaluation_table(result: EvaluationResult) -> Table:
+    p = result.protocol
+    table = Table(
+        "method",
+        "accuracy",
+        "± std",
+        "majority",
+        "no lines",
+        "seconds",
+        title=f"{result.dataset}: {result.n_frames} frames, {p['folds']} contiguous folds "
+        f"(gap {p['gap']}); accuracy pooled over test frames",
+    )
+    for r in result.results:
+        table.add_row(
+            r.method,
+            f"{r.accuracy:.3f}",
+            f"{r.accuracy_std:.3f}",
+            f"{r.majority_baseline:.3f}",
+            str(r.frames_without_lines),
+            f"{r.seconds:.1f}",
+        )
+    return table
+
+
+def train_direction_cmd(
+    data: DataOpt,
+    out_file: Annotated[Path, typer.Option("--out", help="Model file to write (.safetensors).")],
+    method: Annotated[
+        str, typer.Option(help="A registered method (see evaluate).")
+    ] = "image-split-uu",
+    lanes: LanesOpt = "udacity",
+    inner_folds: InnerOpt = 3,
+    gap: GapOpt = 5,
+    epochs: EpochsOpt = 25,
+    weights: WeightsOpt = None,
+    threads: ThreadsOpt = None,
+    seed: SeedOpt = 0,
+    features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
+    as_json: JsonOpt = False,
+) -> None:
+    """Train a direction classifier on all frames of a dataset and save it.
+
+    Hyperparameters are chosen by the inner contiguous cross-validation evaluate uses.
+    """
+    try:
+        spec = TrainDirectionSpec(
+            data,
+            out_file,
+            method,
+            pipeline_config(lanes, seed, features, edges, shadow_removal),
+            inner_folds,
+            gap,
+            training_options(epochs, weights, threads, progress=not as_json),
+        )
+        result = train_direction(spec, CliReporter(False))
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    if as_json:
+        emit(result.to_dict())
+    else:
+        s = result.model.summary
+        out.print(
+            f"{result.model.method} trained on {s['n']} frames of {data} "
+            f"(training accuracy {s['training_accuracy']:.3f}); written to {result.path}"
+        )
+    raise typer.Exit(result.exit_code)
+
+
+def detect_lanes_cmd(
+    paths: Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")],
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for overlays and predictions.")],
+    model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
+    method: Annotated[str, typer.Option(help="Method when no model is given.")] = "image-split-uu",
+    seed: SeedOpt = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Lane overlays and a left/straight/right decision per frame.
+
+    Without --model, a model of --method is trained first on a synthetic track1 drive
+    (300 frames) and the output says so.
+    """
+    try:
+        spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed)
+        result = detect_lanes(spec, CliReporter(as_json))
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    if as_json:
+        emit(result.to_dict())
+    else:
+        out.print(_lanes_table(result))
+    raise typer.Exit(result.exit_code)
+
+
+def _lanes_table(result: DetectLanesResult) -> Table:
+    table = Table("file", "direction", "lines", "ms", title=f"lanes: {result.model.method}")
+    for r in result.records:
+        table.add_row(Path(r.file).name, r.direction, r.status, f"{1e3 * r.seconds:.2f}")
+    table.caption = (
+        f"{len(result.records)} overlays and predictions.csv in {result.out}; "
+        f"{len(result.failures)} failed; model {result.model.method} trained on "
+        f"{result.model.trained_on}"
+    )
+    return table

@@ -1,0 +1,143 @@
+"""``detect-shadows``, ``score-shadows`` and ``train-shadows``."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out, report_error
+from qdcnn.config import ShadowConfig
+from qdcnn.errors import QdcnnError
+from qdcnn.experiments.shadow_batch import (
+    ShadowDetectionResult,
+    ShadowDetectionSpec,
+    ShadowTrainingSpec,
+    median_seconds,
+    run_shadow_detection,
+    score_folders,
+    train_shadows,
+)
+
+PathsArg = Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")]
+MaskOutOpt = Annotated[Path, typer.Option("--out", help="Folder for <stem>_mask.png files.")]
+MethodOpt = Annotated[str, typer.Option(help="uu | uu-chroma | ibt | cbs | lbp")]
+ExactOpt = Annotated[bool, typer.Option("--exact", help="Exact probabilities instead of shots.")]
+ShotsOpt = Annotated[int, typer.Option(help="Shots per block circuit (paper: 1024).")]
+BackendOpt = Annotated[str, typer.Option(help="numpy | aer")]
+ThresholdOpt = Annotated[float | None, typer.Option(help="Fidelity threshold (default 0.97).")]
+CentroidOpt = Annotated[float | None, typer.Option(help="Shadow centroid in [0, 255].")]
+ModelOpt = Annotated[Path | None, typer.Option(help="Model file from train-shadows.")]
+ClassesOpt = Annotated[
+    int, typer.Option(help="Clusters of the per-image calibration start (paper: 2).")
+]
+SeedOpt = Annotated[int, typer.Option(help="Seed of shot sampling.")]
+
+
+def detect_shadows_cmd(
+    paths: PathsArg,
+    out_dir: MaskOutOpt,
+    method: MethodOpt = "uu",
+    exact: ExactOpt = False,
+    shots: ShotsOpt = 1024,
+    backend: BackendOpt = "numpy",
+    threshold: ThresholdOpt = None,
+    centroid: CentroidOpt = None,
+    model: ModelOpt = None,
+    calibration_classes: ClassesOpt = 2,
+    seed: SeedOpt = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Detect shadows; write a 0/255 mask per image at input size."""
+    table = Table("file", "shadow %", "ms", title=f"shadow detection: {method}")
+    try:
+        cfg = ShadowConfig(shots=None if exact else shots, calibration_classes=calibration_classes)
+        cfg = replace(cfg, threshold=cfg.threshold if threshold is None else threshold)
+        cfg = replace(cfg, centroid=centroid)
+        spec = ShadowDetectionSpec(tuple(paths), out_dir, method, cfg, model, backend, seed)
+        result = run_shadow_detection(spec, CliReporter(as_json, lambda r: _mask_row(table, r)))
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    if as_json:
+        emit(result.to_dict())
+    else:
+        out.print(table)
+        out.print(_detection_line(result))
+    raise typer.Exit(result.exit_code)
+
+
+def _mask_row(table: Table, record: Any) -> None:
+    seconds = 1e3 * record["seconds"]
+    table.add_row(
+        Path(record["file"]).name, f"{100 * record['shadow_fraction']:.1f}", f"{seconds:.2f}"
+    )
+
+
+def _detection_line(result: ShadowDetectionResult) -> str:
+    med = median_seconds(result.records)
+    timing = f"; median {1e3 * med:.2f} ms per image (measured)" if med is not None else ""
+    return (
+        f"{len(result.records)} masks in {result.out}, {len(result.failures)} failed, "
+        f"{len(result.skipped)} skipped{timing}"
+    )
+
+
+def score_shadows_cmd(
+    pred: Annotated[Path, typer.Option(help="Folder of <stem>_mask.png predictions.")],
+    gt: Annotated[Path, typer.Option(help="Folder of <stem>.png ground-truth masks.")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Balanced error rate of predicted masks against ground truth (counts summed over the set)."""
+    try:
+        report = score_folders(pred, gt)
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    for f in report.failures:
+        report_error(f.error)
+    if as_json:
+        emit(report.to_dict())
+    elif report.scores:
+        s = report.scores
+        out.print(
+            f"BER {s.ber:.2f}  shadow error {s.shadow_error:.2f}  non-shadow error "
+            f"{s.nonshadow_error:.2f}  IoU {s.iou:.2f}  n {s.n}"
+        )
+    raise typer.Exit(1 if report.failures or report.scores is None else 0)
+
+
+def train_shadows_cmd(
+    data: Annotated[Path, typer.Option(help="Shadow set: DIR/images/* and DIR/masks/<stem>.png.")],
+    out_file: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
+    features: Annotated[
+        str, typer.Option(help="intensity | chromaticity | intensity,chromaticity")
+    ] = "intensity",
+    centroids: Annotated[
+        int, typer.Option(help="Components (1: the paper's single centroid).")
+    ] = 1,
+    search_threshold: Annotated[
+        bool, typer.Option(help="Pick the threshold with the lowest training BER.")
+    ] = True,
+    seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Train a UU-dagger shadow model on images with masks.
+
+    One feature and one centroid is the paper's model (centroid by the propagation
+    algorithm, threshold from a grid that holds the paper's 0.75 and 0.97). Several
+    features or centroids train the multi-centroid model: one centroid and threshold
+    per feature and component.
+    """
+    names = tuple(f.strip() for f in features.split(",") if f.strip())
+    try:
+        spec = ShadowTrainingSpec(data, out_file, names, centroids, search_threshold, seed)
+        result = train_shadows(spec, CliReporter(False))
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    if as_json:
+        emit(result.to_dict())
+    else:
+        out.print(f"{result.model.describe()}; written to {result.path}")
+    raise typer.Exit(result.exit_code)
