@@ -172,12 +172,14 @@ def _readable_file(path: str | os.PathLike[str]) -> Path:
         raise InputError(p, "not a regular file (a model file is expected)")
     try:
         with open(p, "rb") as fh:
-            start = fh.read(4)
+            start = fh.read(9)
     except OSError as exc:
         raise InputError(p, f"cannot read: {exc.strerror or exc}") from None
     if not start:
         raise InputError(p, "empty file (0 bytes)")
-    if start.startswith(_PICKLE_MAGIC):
+    # a safetensors file opens with its 8-byte header length, then the JSON header's "{"
+    safetensors = len(start) == 9 and start[8:9] == b"{"
+    if not safetensors and start.startswith(_PICKLE_MAGIC):
         raise InputError(
             p,
             "a pickle-based file (an older qdcnn model or a torch file); it is never loaded "
