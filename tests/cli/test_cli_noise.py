@@ -74,26 +74,28 @@ def test_circuit_uu_exact_and_noisy() -> None:
 
 
 def test_circuit_vqc_matches_qiskit_ordering_and_exports_qasm(tmp_path: Path) -> None:
-    qasm = tmp_path / "vqc.qasm"
     args = ["circuit", "vqc", "--x", "0.3,1.2", "--weights", "0.1,0.2,0.3,0.4"]
-    res = runner.invoke(app, [*args, "--qasm", str(qasm), "--json"])
+    res = runner.invoke(app, [*args, "--json"])
     assert res.exit_code == 0, res.output
     (obj,) = json_lines(res.stdout)
     assert obj["states"] == ["00", "01", "10", "11"]
     expected = probabilities(vqc_circuit([[0.3, 1.2]], [0.1, 0.2, 0.3, 0.4]))[0]
     np.testing.assert_allclose(obj["probabilities"], expected, atol=1e-12)
-    assert obj["qasm"] == str(qasm)
-    pytest.importorskip("qiskit_qasm3_import")
-    from qiskit import qasm3
-    from qiskit.quantum_info import Statevector
-
-    loaded = qasm3.loads(qasm.read_text()).remove_final_measurements(inplace=False)
-    np.testing.assert_allclose(Statevector(loaded).probabilities(), expected, atol=1e-12)
     # the human-readable form: diagram and table
     res = runner.invoke(app, args)
     assert res.exit_code == 0
     assert "Ry(0.4)" in res.stdout or "ry(0.4)" in res.stdout
     assert f"{expected[3]:.6f}" in res.stdout
+    pytest.importorskip("qiskit_qasm3_import")
+    from qiskit import qasm3
+    from qiskit.quantum_info import Statevector
+
+    qasm = tmp_path / "vqc.qasm"
+    res = runner.invoke(app, [*args, "--qasm", str(qasm), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json_lines(res.stdout)[0]["qasm"] == str(qasm)
+    loaded = qasm3.loads(qasm.read_text()).remove_final_measurements(inplace=False)
+    np.testing.assert_allclose(Statevector(loaded).probabilities(), expected, atol=1e-12)
 
 
 def test_circuit_aer_and_shots() -> None:

@@ -53,7 +53,7 @@ def test_fallback_diagram_without_qiskit(monkeypatch: pytest.MonkeyPatch) -> Non
     c = uu_dagger_circuit(1.0, 0.25)
     monkeypatch.setattr(export, "has_module", lambda name: False)
     assert draw_text(c) == gate_listing(c)
-    with pytest.raises(MissingExtraError, match="qiskit-qasm3-import"):
+    with pytest.raises(MissingExtraError, match=r"pip install 'qdcnn\[quantum\]'"):
         from_qasm3("OPENQASM 3.0;")
 
 
