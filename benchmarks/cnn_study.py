@@ -39,11 +39,12 @@ from typing import Any
 
 import numpy as np
 
-from qdcnn.data.frames import stack_images
+from qdcnn.config import PipelineConfig
+from qdcnn.data.frames import load_frameset, stack_images
 from qdcnn.data.labels import DIRECTIONS
-from qdcnn.experiments.datasets import load_frameset
-from qdcnn.experiments.evaluate import contiguous_folds, majority_accuracy
-from qdcnn.experiments.evaluate_dnn import evaluate_cnn
+from qdcnn.experiments.evaluate import evaluate_frames
+from qdcnn.experiments.methods import TrainingOptions
+from qdcnn.experiments.protocol import ContiguousKFold
 from qdcnn.models.training import CNNDirectionClassifier, inference_fps
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -73,7 +74,7 @@ def dev_part(
     images, readable, _ = stack_images(frames)
     labels = frames.labels()[readable]
     images = images[readable]
-    folds = contiguous_folds(len(labels), args.folds, args.gap)
+    folds = list(ContiguousKFold(args.folds, args.gap).split(labels))
     out: dict[str, Any] = {}
     for name, settings in variants.items():
         accs = []
@@ -114,17 +115,15 @@ def pilotnet_part(
         frames = load_frameset(spec, seed=args.seed)
         labels = frames.labels()
         t0 = time.perf_counter()
-        res = evaluate_cnn(
+        options = TrainingOptions(epochs=args.epochs, threads=args.threads, params=params)
+        res, _ = evaluate_frames(
             "dnn-pilotnet",
             frames,
             labels,
+            config=PipelineConfig(seed=args.seed),
+            options=options,
             folds=args.folds,
             gap=args.gap,
-            epochs=args.epochs,
-            seed=args.seed,
-            progress=False,
-            num_threads=args.threads,
-            params=params,
         )
         wall = time.perf_counter() - t0
         row = {"dataset": name, "spec": spec, "wall_s": wall, **res.to_dict()}
@@ -194,7 +193,7 @@ def resnet_one_fold(datasets: dict[str, str], args: argparse.Namespace) -> dict[
     images, readable, _ = stack_images(frames)
     labels = frames.labels()[readable]
     images = images[readable]
-    train, test = contiguous_folds(len(labels), args.folds, args.gap)[-1]
+    train, test = list(ContiguousKFold(args.folds, args.gap).split(labels))[-1]
     clf = CNNDirectionClassifier(
         "resnet50",
         epochs=args.resnet_fold_epochs,
@@ -209,7 +208,7 @@ def resnet_one_fold(datasets: dict[str, str], args: argparse.Namespace) -> dict[
     clf.fit(images[train], labels[train])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     acc = float(np.mean(clf.predict(images[test]) == labels[test]))
-    majority = majority_accuracy(labels[train], labels[test])
+    majority = float(np.mean(labels[test] == np.bincount(labels[train], minlength=3).argmax()))
     print(
         f"  ResNet-50, last fold of {frames.name} ({len(train)} training frames), "
         f"{args.resnet_fold_epochs} epochs, weights {args.weights}: accuracy {acc:.3f} "

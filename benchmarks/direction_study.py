@@ -2,7 +2,7 @@
 
 For every dataset and every mode this runs the six quantum methods (grouping x UU-dagger /
 VQC) through :func:`qdcnn.experiments.evaluate.evaluate_features` (5 contiguous folds, gap
-5, hyperparameters by the inner CV of ``make_classifier``), and, on the same rows and
+5, hyperparameters by the inner contiguous CV of the method registry), and, on the same rows and
 folds, a classical upper bound: scikit-learn's ``HistGradientBoostingClassifier`` on the
 mode's two columns and on every column of the feature table. It also times the per-frame
 pipeline (``process_frame`` with image-split grouping + the UU decision) on one core.
@@ -19,7 +19,7 @@ Modes (every one but "paper" is a named option, not the paper's):
     As ``slopes-rgb``, with the feature mode of that name
     (:attr:`qdcnn.config.GroupingConfig.FEATURE_MODES`) and the named modes' VQC grid.
 
-Features are cached by :func:`qdcnn.experiments.features.compute_features`; the named
+Features are cached by :func:`qdcnn.experiments.lane_data.load_lane_data`; the named
 modes share one feature table (all their extras computed at once).
 
 Usage::
@@ -50,17 +50,15 @@ import numpy as np
 from sklearn.ensemble import HistGradientBoostingClassifier
 
 from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
-from qdcnn.experiments.datasets import FrameSet, load_frameset
-from qdcnn.experiments.evaluate import (
-    QUANTUM_METHODS,
-    contiguous_folds,
-    evaluate_features,
-    make_classifier,
-)
-from qdcnn.experiments.features import compute_features
+from qdcnn.data.frames import FrameSet, load_frameset
+from qdcnn.experiments.evaluate import evaluate_features
+from qdcnn.experiments.lane_data import load_lane_data
+from qdcnn.experiments.methods import GROUPINGS, get_method, method_names
+from qdcnn.experiments.protocol import ContiguousKFold
 from qdcnn.pipeline import process_frame
 from qdcnn.vision.grouping import mode_columns
 
+LANE_METHODS = method_names(inputs="lanes")
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DATASETS = {
     "lake": f"udacity:{SHARED / 'udacity-lake-track'}",
@@ -103,7 +101,7 @@ def mode_config(mode: str) -> PipelineConfig:
 def gbm_accuracy(X: np.ndarray, y: np.ndarray) -> float:
     """Mean accuracy of gradient boosting over the study's contiguous folds (NaN allowed)."""
     accs = []
-    for train, test in contiguous_folds(len(y), FOLDS, GAP):
+    for train, test in ContiguousKFold(FOLDS, GAP).split(y):
         model = HistGradientBoostingClassifier(
             max_iter=150, learning_rate=0.05, max_leaf_nodes=15, l2_regularization=1.0
         )
@@ -139,7 +137,7 @@ def time_pipeline(frames: FrameSet, config: PipelineConfig, n: int = 200) -> dic
             rows.append(result.lanes["image-split"].features)
         X = np.vstack(rows)
         y = frames.labels(config.labels)[idx]
-        clf, _ = make_classifier("uu", config, seed=config.seed)
+        clf, _ = get_method("image-split-uu").estimator(config)
         ok = np.isfinite(X).all(axis=1)
         decide_times = []
         if ok.sum() >= 3 and len(np.unique(y[ok])) > 1:
@@ -171,15 +169,14 @@ def study_dataset(
         table_key = "paper" if mode == "paper" else "named"
         if table_key not in tables:
             t0 = time.perf_counter()
-            tables[table_key] = compute_features(frames, cfg)
+            tables[table_key] = load_lane_data(frames, cfg, GROUPINGS)
             print(f"  features {frames.name}/{table_key}: {time.perf_counter() - t0:.0f} s")
-        table = tables[table_key]
-        keep = table.readable
-        y = frames.labels(cfg.labels)[keep]
+        lanes = tables[table_key]
+        table, keep, y = lanes.table, lanes.keep, lanes.y
         columns = mode_columns(cfg.grouping.features, cfg.grouping.extra_features)
         row: dict[str, Any] = {"dataset": frames.name, "mode": mode, "n": int(keep.sum())}
         for method in methods:
-            grouping = QUANTUM_METHODS[method][0]
+            grouping = get_method(method).grouping
             X = table.features[grouping][keep]
             res = evaluate_features(
                 method,
@@ -243,7 +240,7 @@ def ceilings(spec: str, frames_default: int) -> dict[str, float]:
         )
     H = np.asarray(hogs)
     accs = []
-    for train, test in contiguous_folds(len(y), FOLDS, GAP):
+    for train, test in ContiguousKFold(FOLDS, GAP).split(y):
         model = make_pipeline(StandardScaler(), LogisticRegression(C=0.01, max_iter=2000))
         model.fit(H[train], y[train])
         accs.append(float(np.mean(model.predict(H[test]) == y[test])))
@@ -278,14 +275,14 @@ def ceilings(spec: str, frames_default: int) -> dict[str, float]:
 
 def markdown(rows: list[dict[str, Any]]) -> str:
     """The accuracy table (and per-frame times when measured) as Markdown."""
-    head = ["dataset", "mode", *QUANTUM_METHODS, "majority", "GBM 2 cols", "GBM all"]
+    head = ["dataset", "mode", *LANE_METHODS, "majority", "GBM 2 cols", "GBM all"]
     timed = any("time_total_s" in r for r in rows)
     if timed:
         head.append("ms/frame (1 core)")
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [r["dataset"], r["mode"]]
-        cells += [f"{r[m]:.3f}" if m in r else "-" for m in QUANTUM_METHODS]
+        cells += [f"{r[m]:.3f}" if m in r else "-" for m in LANE_METHODS]
         cells += [f"{r['majority']:.3f}", f"{r['gbm_pair']:.3f}", f"{r['gbm_all']:.3f}"]
         if timed:
             cells.append(f"{1e3 * r.get('time_total_s', float('nan')):.2f}")
@@ -304,13 +301,13 @@ def main() -> None:
         "--ceilings", action="store_true", help="only the lane-independent bounds (ceilings())"
     )
     parser.add_argument(
-        "--methods", default=",".join(QUANTUM_METHODS), help="quantum methods to evaluate"
+        "--methods", default=",".join(LANE_METHODS), help="quantum methods to evaluate"
     )
     args = parser.parse_args()
     modes = args.modes.split(",")
     methods = args.methods.split(",")
-    if any(m not in QUANTUM_METHODS for m in methods):
-        parser.error(f"methods must be among {', '.join(QUANTUM_METHODS)}")
+    if any(m not in LANE_METHODS for m in methods):
+        parser.error(f"methods must be among {', '.join(LANE_METHODS)}")
     unknown = [m for m in modes if m not in MODES]
     if unknown:
         parser.error(f"unknown modes {unknown}; choose from {', '.join(MODES)}")
