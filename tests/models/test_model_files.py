@@ -249,3 +249,11 @@ def test_a_checkpoint_restores_the_optimiser_and_scheduler(tmp_path: Path) -> No
 def _params(path: Path) -> dict[str, Any]:
     header, _ = load_model(path, MODEL_KIND, {MODEL_FORMAT_VERSION})
     return dict(header.meta["params"])
+
+
+def test_non_finite_history_values_are_stored_as_null(tmp_path: Path) -> None:
+    clf = untrained()
+    clf.history_ = [{"epoch": 1, "train_loss": float("nan"), "val_loss": float("inf")}]
+    clf.best_epoch_ = 1
+    loaded = CNNDirectionClassifier.load(clf.save(tmp_path / "nan.safetensors"))
+    assert loaded.history_ == [{"epoch": 1, "train_loss": None, "val_loss": None}]

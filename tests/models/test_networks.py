@@ -146,3 +146,26 @@ def test_safetensors_weights_and_saved_classifiers_start_a_network(tmp_path: Pat
 def test_factory_keywords_reach_the_network() -> None:
     net: Any = build_network("pilotnet", dropout=0.5)
     assert net.classifier[1].p == 0.5
+
+
+def test_network_params_reach_the_factory_and_the_file(tmp_path: Path) -> None:
+    frames = np.random.default_rng(3).integers(0, 256, (20, 40, 80, 3), dtype=np.uint8)
+    labels = np.arange(20) % 3
+    clf = CNNDirectionClassifier(
+        epochs=1, progress=False, num_threads=1, device="cpu", network_params={"dropout": 0.0}
+    ).fit(frames, labels)
+    assert clf.model_.classifier[1].p == 0.0
+    loaded = CNNDirectionClassifier.load(clf.save(tmp_path / "p.safetensors"))
+    assert loaded.model_.classifier[1].p == 0.0
+    assert loaded.get_params()["network_params"] == {"dropout": 0.0}
+    with pytest.raises(ParameterError) as err:
+        CNNDirectionClassifier(network_params={"depth": 3}, progress=False).fit(frames, labels)
+    assert str(err.value).startswith(
+        "network_params={'depth': 3} is invalid: keyword arguments the pilotnet network takes ("
+    )
+    with pytest.raises(ParameterError) as err:
+        CNNDirectionClassifier(network_params={"p": float("nan")}).fit(frames, labels)
+    assert str(err.value) == (
+        "network_params={'p': nan} is invalid: None or a dict of str to plain values "
+        "(numbers, strings)"
+    )

@@ -162,7 +162,7 @@ def build_network(
     Raises
     ------
     ParameterError
-        Unknown ``arch`` or a bad channel/class count.
+        Unknown ``arch``, a bad channel/class count, or keywords its factory rejects.
     InputError
         The weights file is missing, unreadable or does not fit the network.
 
@@ -177,13 +177,24 @@ def build_network(
     check_int("num_classes", num_classes, 2, 100_000)
     torch = require("torch", f"building the {arch} network")
     if seed is None:
-        network = entry.factory(in_channels, num_classes, **kw)
+        network = _call(entry, arch, in_channels, num_classes, kw)
     else:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(check_seed("seed", seed))
-            network = entry.factory(in_channels, num_classes, **kw)
+            network = _call(entry, arch, in_channels, num_classes, kw)
     if weights is not None:
         from qdcnn.models.weights import load_weights
 
         load_weights(network, weights, name=entry.weights_name, skip_prefixes=entry.weights_skip)
     return network
+
+
+def _call(
+    entry: NetworkEntry, arch: str, in_channels: int, num_classes: int, kw: dict[str, Any]
+) -> nn.Module:
+    try:
+        return entry.factory(in_channels, num_classes, **kw)
+    except TypeError as exc:  # an unknown or mistyped keyword of the factory
+        raise ParameterError(
+            "network_params", kw, f"keyword arguments the {arch} network takes ({exc})"
+        ) from None

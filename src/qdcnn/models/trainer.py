@@ -51,6 +51,7 @@ __all__ = [
     "TrainSettings",
     "Trainer",
     "class_weights",
+    "default_threads",
     "place",
     "resolve_device",
     "rich_progress",

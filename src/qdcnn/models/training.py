@@ -16,9 +16,10 @@ torch; torch is loaded when a model is built.
 
 from __future__ import annotations
 
+import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -57,6 +58,7 @@ __all__ = [
     "split_train_val",
 ]
 
+#: The built-in networks; ``arch`` takes any name registered in :data:`NETWORKS`.
 Arch = Literal["pilotnet", "resnet50"]
 #: Networks a classifier can train (the registry's names when this module was imported).
 ARCHS: tuple[str, ...] = tuple(NETWORKS)
@@ -111,6 +113,31 @@ def _check_crop(crop: object) -> None:
     )
     if not ok:
         raise ParameterError("crop", crop, "(top, bottom) with 0 <= top < bottom <= 1")
+
+
+def _check_network_params(value: object) -> None:
+    ok = value is None or (
+        isinstance(value, Mapping)
+        and all(isinstance(k, str) for k in value)
+        and all(_is_plain(v) for v in value.values())
+    )
+    if not ok:
+        raise ParameterError(
+            "network_params", value, "None or a dict of str to plain values (numbers, strings)"
+        )
+
+
+def _is_plain(value: object) -> bool:
+    """A JSON value that survives a model file unchanged (so ``load`` rebuilds the network)."""
+    if value is None or isinstance(value, bool | int | str):
+        return True
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, list):
+        return all(_is_plain(v) for v in value)
+    if isinstance(value, Mapping):
+        return all(isinstance(k, str) and _is_plain(v) for k, v in value.items())
+    return False
 
 
 def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
@@ -222,6 +249,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         (the first frames repeat frame 0), so pass whole recordings in order. The
         network gets ``3K`` input channels; augmentation flips, brightens, shades
         and shifts the K frames of a sample alike.
+    network_params : dict or None
+        Further keyword arguments of the network's factory
+        (:func:`qdcnn.models.networks.build_network`), such as ``{"dropout": 0.5}``
+        for PilotNet; plain JSON values, kept in saved files.
 
     Attributes
     ----------
@@ -249,7 +280,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     def __init__(
         self,
-        arch: Arch = "pilotnet",
+        arch: str = "pilotnet",
         *,
         epochs: int = 25,
         batch_size: int = 16,
@@ -273,6 +304,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         num_threads: int | None = None,
         crop: tuple[float, float] | None = None,
         context: int = 1,
+        network_params: Mapping[str, Any] | None = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -297,6 +329,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.num_threads = num_threads
         self.crop = crop
         self.context = context
+        self.network_params = network_params
 
     # ----------------------------------------------------------------- checks
     def _checked(self) -> tuple[NetworkEntry, TrainSettings]:
@@ -329,7 +362,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             raise ParameterError("weights", self.weights, "a weights file path or None")
         _check_crop(self.crop)
         check_int("context", self.context, 1, MAX_CONTEXT)
+        _check_network_params(self.network_params)
         return entry, settings
+
+    def _network_kw(self) -> dict[str, Any]:
+        return dict(self.network_params or {})
 
     def _threads(self) -> int:
         from qdcnn.models.trainer import default_threads
@@ -399,7 +436,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         spec = input_spec(self.arch, self.crop)
         k = int(self.context)
         # first: a bad weights file fails fast
-        network = build_network(self.arch, 3 * k, weights=self.weights, seed=self.seed)
+        network = build_network(
+            self.arch, 3 * k, weights=self.weights, seed=self.seed, **self._network_kw()
+        )
         samples = FrameSamples.sequence(crop_resize(x, spec), y, k)
         extra, extra_of = _extra_samples(views, spec, k)
         with rich_progress(self.arch, settings.epochs, enabled=self.progress) as callbacks:
@@ -494,7 +533,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         >>> net = build_network("pilotnet", seed=0)  # doctest: +SKIP
         >>> clf = CNNDirectionClassifier.from_network(net, device="cpu")  # doctest: +SKIP
         """
-        clf = cls(arch, **params)  # type: ignore[arg-type]
+        clf = cls(arch, **params)
         clf._checked()
         clf._set_fitted(network, input_spec(arch, clf.crop), [], 0)
         return clf
@@ -557,7 +596,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         meta, arrays = read_network_file(path)
         clf = _classifier_from_meta(cls, meta, path, device)
         spec = spec_from_meta(meta.get("input_spec"), path)
-        network = build_network(clf.arch, 3 * int(clf.context), seed=0)
+        try:
+            network = build_network(clf.arch, 3 * int(clf.context), seed=0, **clf._network_kw())
+        except ParameterError as exc:
+            raise InputError(path, f"saved settings are invalid: {exc}") from None
         load_state_arrays(network, arrays, path, name=f"qdcnn {clf.arch}")
         history, best_epoch = _history_from_meta(meta, path)
         clf._set_fitted(network, spec, history, best_epoch)
@@ -643,7 +685,7 @@ def _extra_samples(
 
 
 def inference_fps(
-    arch: Arch = "pilotnet",
+    arch: str = "pilotnet",
     *,
     n: int = 256,
     size: tuple[int, int] = (160, 320),
