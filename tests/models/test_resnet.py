@@ -8,6 +8,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.networks import build_network  # noqa: E402
 from qdcnn.models.resnet import resnet50  # noqa: E402
 
 # (key, shape) pairs as in torchvision.models.resnet50().state_dict()
@@ -43,7 +44,8 @@ def test_three_class_head_forward() -> None:
 
 
 def test_classifier_predicts_on_frames() -> None:
-    clf = CNNDirectionClassifier("resnet50", device="cpu", num_threads=1)._init_untrained()
+    network = build_network("resnet50", seed=0)
+    clf = CNNDirectionClassifier.from_network(network, "resnet50", device="cpu", num_threads=1)
     frames = np.random.default_rng(0).integers(0, 256, (2, 40, 80, 3), dtype=np.uint8)
     proba = clf.predict_proba(frames)
     assert proba.shape == (2, 3)

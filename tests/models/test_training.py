@@ -1,4 +1,8 @@
-"""CNNDirectionClassifier: learning, determinism, persistence, checkpoints, input errors."""
+"""CNNDirectionClassifier: learning, determinism, persistence, checkpoints, input errors.
+
+The estimator composes network, trainer and model file; the parts have their own
+tests (test_networks, test_trainer, test_model_files, test_samples).
+"""
 
 from __future__ import annotations
 
@@ -15,7 +19,14 @@ from sklearn.exceptions import NotFittedError  # noqa: E402
 
 from qdcnn.errors import InputError, ParameterError  # noqa: E402
 from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.networks import build_network  # noqa: E402
+from qdcnn.models.persistence import load_checkpoint  # noqa: E402
 from qdcnn.models.training import class_weights, split_train_val  # noqa: E402
+
+PICKLE_REFUSAL = (
+    "a pickle-based file (an older qdcnn model or a torch file); it is never loaded "
+    "because unpickling can run code: retrain the model with this qdcnn version"
+)
 
 
 def line_frames(
@@ -100,8 +111,8 @@ def test_fit_leaves_global_torch_state_alone(data: tuple[np.ndarray, np.ndarray]
 
 def test_save_load_round_trip(fitted: CNNDirectionClassifier, tmp_path: Path) -> None:
     x, _ = line_frames(12, np.random.default_rng(2))
-    path = tmp_path / "pilotnet.pt"
-    fitted.save(path)
+    path = tmp_path / "pilotnet.safetensors"
+    assert fitted.save(path) == path
     loaded = CNNDirectionClassifier.load(path)
     np.testing.assert_array_equal(loaded.predict_proba(x), fitted.predict_proba(x))
     assert loaded.get_params() == fitted.get_params()
@@ -109,28 +120,40 @@ def test_save_load_round_trip(fitted: CNNDirectionClassifier, tmp_path: Path) ->
     assert loaded.best_epoch_ == fitted.best_epoch_
 
 
-def test_load_rejects_other_files(tmp_path: Path) -> None:
-    plain = tmp_path / "plain.pt"
-    torch.save({"w": torch.zeros(2)}, plain)
+def test_load_refuses_torch_files_and_missing_ones(tmp_path: Path) -> None:
+    # an old qdcnn model (torch.save of a dict) is a zip of pickles: refused, never unpickled
+    old = tmp_path / "pilotnet.pt"
+    torch.save({"format": "qdcnn-cnn-direction-classifier/1", "w": torch.zeros(2)}, old)
     with pytest.raises(InputError) as err:
-        CNNDirectionClassifier.load(plain)
-    assert str(err.value) == f"{plain}: not a saved qdcnn CNN direction classifier"
-    missing = tmp_path / "none.pt"
+        CNNDirectionClassifier.load(old)
+    assert str(err.value) == f"{old}: {PICKLE_REFUSAL}"
+    missing = tmp_path / "none.safetensors"
     with pytest.raises(InputError) as err:
         CNNDirectionClassifier.load(missing)
-    assert str(err.value) == f"{missing}: file not found"
+    assert str(err.value) == f"{missing}: model file not found"
 
 
 def test_checkpoints_hold_the_best_model_and_the_optimiser(
     data: tuple[np.ndarray, np.ndarray], tmp_path: Path
 ) -> None:
     clf = small(epochs=2, checkpoint_dir=tmp_path / "ckpt").fit(*data)
-    best = CNNDirectionClassifier.load(tmp_path / "ckpt" / "best.pt")
+    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == [
+        "best.safetensors",
+        "last.safetensors",
+    ]
+    best = CNNDirectionClassifier.load(tmp_path / "ckpt" / "best.safetensors")
     np.testing.assert_array_equal(best.predict_proba(data[0]), clf.predict_proba(data[0]))
-    last = torch.load(tmp_path / "ckpt" / "last.pt", weights_only=True)
-    assert last["epoch"] == 2
-    assert last["optimizer"]["state"]  # AdamW moments were saved
-    assert len(last["history"]) == 2
+    assert best.best_epoch_ == clf.best_epoch_
+    assert best.history_ == clf.history_[: clf.best_epoch_]  # written when that epoch ended
+    network = build_network("pilotnet")
+    optimiser = torch.optim.AdamW(network.parameters())
+    meta = load_checkpoint(tmp_path / "ckpt" / "last.safetensors", network, optimiser)
+    assert meta["epoch"] == 2 and len(meta["history"]) == 2
+    assert meta["architecture"] == "pilotnet"
+    state = optimiser.state_dict()["state"]
+    assert len(state) == len(list(network.parameters()))  # AdamW moments were saved
+    # 46 training frames in batches of 16: 3 steps per epoch
+    assert all(float(entry["step"]) == 2 * 3 for entry in state.values())
 
 
 def test_early_stopping_respects_patience(data: tuple[np.ndarray, np.ndarray]) -> None:
@@ -152,8 +175,8 @@ def test_progress_bar_goes_to_stderr(
 
 def test_flip_averaging_is_mirror_symmetric(fitted: CNNDirectionClassifier) -> None:
     x, _ = line_frames(9, np.random.default_rng(5))
-    tta = clone(fitted).set_params(tta=True)
-    tta.model_, tta.device_ = fitted.model_, fitted.device_  # same trained network
+    params = {**fitted.get_params(), "tta": True}
+    tta = CNNDirectionClassifier.from_network(fitted.model_, **params)  # same trained network
     proba = tta.predict_proba(x)
     mirrored = tta.predict_proba(np.ascontiguousarray(x[:, :, ::-1]))
     np.testing.assert_allclose(mirrored, proba[:, [2, 1, 0]], atol=1e-6)
@@ -240,27 +263,53 @@ def test_input_errors(data: tuple[np.ndarray, np.ndarray]) -> None:
         small().predict(x)
 
 
-def test_parameter_errors() -> None:
+def fit_error(**params: object) -> str:
+    """The ParameterError message of ``fit`` for ``params`` (which ``__init__`` accepts)."""
+    frames, labels = line_frames(6, np.random.default_rng(0))
+    clf = CNNDirectionClassifier(**params)  # type: ignore[arg-type]
     with pytest.raises(ParameterError) as err:
-        CNNDirectionClassifier("vgg")  # type: ignore[arg-type]
-    assert str(err.value) == "arch='vgg' is invalid: 'pilotnet' or 'resnet50'"
-    with pytest.raises(ParameterError, match=r"val_fraction=1\.5 is invalid"):
-        CNNDirectionClassifier(val_fraction=1.5)
-    with pytest.raises(ParameterError, match="batch_size=1 is invalid"):
-        CNNDirectionClassifier("resnet50", batch_size=1)
-    with pytest.raises(ParameterError, match="crop"):
-        CNNDirectionClassifier(crop=(0.8, 0.2))
-    with pytest.raises(ParameterError) as err:
-        CNNDirectionClassifier(class_weight="auto")  # type: ignore[arg-type]
-    assert str(err.value) == "class_weight='auto' is invalid: 'balanced' or None"
-    with pytest.raises(ParameterError, match=r"label_smoothing=0\.5 is invalid"):
-        CNNDirectionClassifier(label_smoothing=0.5)
-    with pytest.raises(ParameterError, match="lr_schedule='step' is invalid"):
-        CNNDirectionClassifier(lr_schedule="step")  # type: ignore[arg-type]
-    with pytest.raises(ParameterError, match=r"max_shift=-0\.1 is invalid"):
-        CNNDirectionClassifier(max_shift=-0.1)
-    with pytest.raises(ParameterError, match="val_blocks=0 is invalid"):
-        CNNDirectionClassifier(val_blocks=0)
+        clf.fit(frames, labels)
+    return str(err.value)
+
+
+def test_parameter_errors_are_raised_by_fit() -> None:
+    assert fit_error(arch="vgg") == "arch='vgg' is invalid: one of 'pilotnet', 'resnet50'"
+    assert fit_error(val_fraction=1.5) == (
+        "val_fraction=1.5 is invalid: a finite number in [0, 0.9]"
+    )
+    assert fit_error(arch="resnet50", batch_size=1) == (
+        "batch_size=1 is invalid: an integer in [2, 65536]"
+    )
+    assert fit_error(crop=(0.8, 0.2)) == (
+        "crop=(0.8, 0.2) is invalid: (top, bottom) with 0 <= top < bottom <= 1"
+    )
+    assert fit_error(class_weight="auto") == "class_weight='auto' is invalid: 'balanced' or None"
+    assert fit_error(label_smoothing=0.5) == (
+        "label_smoothing=0.5 is invalid: a finite number in [0, 0.5)"
+    )
+    assert fit_error(lr_schedule="step") == (
+        "lr_schedule='step' is invalid: one of 'constant', 'cosine'"
+    )
+    assert fit_error(max_shift=-0.1) == "max_shift=-0.1 is invalid: a finite number in [0, 0.5]"
+    assert fit_error(val_blocks=0) == "val_blocks=0 is invalid: an integer in [1, 1000]"
+    assert fit_error(epochs=True) == "epochs=True is invalid: an integer in [1, 100000]"
+    assert fit_error(context=0) == "context=0 is invalid: an integer in [1, 64]"
+    assert fit_error(seed=-1) == "seed=-1 is invalid: an integer in [0, 4294967295]"
+    assert fit_error(tta="yes") == "tta='yes' is invalid: True or False"
+    assert fit_error(device="") == (
+        "device='' is invalid: 'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
+    )
+    assert fit_error(weights=3) == "weights=3 is invalid: a weights file path or None"
+
+
+def test_clone_keeps_invalid_params_and_fit_rejects_them() -> None:
+    frames, labels = line_frames(6, np.random.default_rng(0))
+    bad = CNNDirectionClassifier(epochs=0, lr=-1.0)  # scikit-learn: __init__ only stores
+    twin = clone(bad)
+    assert twin.get_params()["epochs"] == 0 and twin.get_params()["lr"] == -1.0
+    with pytest.raises(ParameterError, match=r"^epochs=0 is invalid: an integer in \[1, 100000\]$"):
+        twin.fit(frames, labels)
+    assert not hasattr(twin, "model_")
 
 
 def test_is_a_scikit_learn_estimator() -> None:
@@ -277,6 +326,6 @@ def test_inference_fps_checks_its_arguments() -> None:
     assert np.isfinite(fps) and fps > 0
     with pytest.raises(ParameterError) as err:
         inference_fps("pilotnet", n=4, size=(40, 80), clock="gpu")  # type: ignore[arg-type]
-    assert str(err.value) == "clock='gpu' is invalid: 'wall' or 'cpu'"
+    assert str(err.value) == "clock='gpu' is invalid: one of 'wall', 'cpu'"
     with pytest.raises(ParameterError, match="n=0 is invalid"):
         inference_fps("pilotnet", n=0)

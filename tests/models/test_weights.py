@@ -13,6 +13,7 @@ torch = pytest.importorskip("torch")
 
 from qdcnn.errors import InputError  # noqa: E402
 from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.networks import build_network  # noqa: E402
 from qdcnn.models.pilotnet import PilotNet  # noqa: E402
 from qdcnn.models.resnet import resnet50  # noqa: E402
 from qdcnn.models.weights import load_weights  # noqa: E402
@@ -169,6 +170,5 @@ def test_pilotnet_starts_from_given_weights(tmp_path: Path) -> None:
     torch.manual_seed(7)
     start = PilotNet().state_dict()
     torch.save(start, tmp_path / "pilotnet.pth")
-    clf = CNNDirectionClassifier("pilotnet", weights=tmp_path / "pilotnet.pth", device="cpu")
-    state = clf._init_untrained().model_.state_dict()
+    state = build_network("pilotnet", weights=tmp_path / "pilotnet.pth").state_dict()
     assert all(torch.equal(state[k], v) for k, v in start.items())

@@ -33,12 +33,14 @@ class PilotNet(nn.Module):
         Output logits (3: left, straight, right).
     dropout : float
         Dropout probability on the flattened features.
+    in_channels : int
+        Input planes: 3, or 3K for K frames stacked along channels.
     """
 
-    def __init__(self, num_classes: int = 3, dropout: float = 0.3) -> None:
+    def __init__(self, num_classes: int = 3, dropout: float = 0.3, in_channels: int = 3) -> None:
         super().__init__()
         self.features = nn.Sequential(
-            nn.Conv2d(3, 24, 5, stride=2), nn.ELU(),
+            nn.Conv2d(in_channels, 24, 5, stride=2), nn.ELU(),
             nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
             nn.Conv2d(36, 48, 5, stride=2), nn.ELU(),
             nn.Conv2d(48, 64, 3), nn.ELU(),
@@ -54,6 +56,6 @@ class PilotNet(nn.Module):
         )  # fmt: skip
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Logits ``(B, num_classes)`` for a ``(B, 3, 66, 200)`` batch."""
+        """Logits ``(B, num_classes)`` for a ``(B, in_channels, 66, 200)`` batch."""
         out: torch.Tensor = self.classifier(self.features(x))
         return out

@@ -8,22 +8,35 @@ so augmented pixels stay in 0..255.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._optional import require
+from qdcnn.models.specs import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    PILOTNET_INPUT,
+    RESNET50_INPUT,
+    ROAD_CROP,
+    InputSpec,
+)
 
 require("torch", "the CNN baselines")
 import torch  # noqa: E402
 
-# Rows 60..135 of a 160-row Udacity frame: drop the sky above and the car hood below.
-ROAD_CROP: tuple[float, float] = (60 / 160, 135 / 160)
-IMAGENET_MEAN: tuple[float, float, float] = (0.485, 0.456, 0.406)
-IMAGENET_STD: tuple[float, float, float] = (0.229, 0.224, 0.225)
+__all__ = [
+    "IMAGENET_MEAN",
+    "IMAGENET_STD",
+    "PILOTNET_INPUT",
+    "RESNET50_INPUT",
+    "ROAD_CROP",
+    "InputSpec",
+    "crop_resize",
+    "crop_rows",
+    "normalise",
+]
+
 # ITU-R BT.601 as OpenCV's COLOR_RGB2YUV: Y = .299R + .587G + .114B, U = .492(B-Y), V = .877(R-Y).
 _RGB_TO_YUV = torch.tensor(
     [
@@ -32,35 +45,6 @@ _RGB_TO_YUV = torch.tensor(
         [0.877 * (1 - 0.299), -0.877 * 0.587, -0.877 * 0.114],
     ]
 )
-
-
-@dataclass(frozen=True)
-class InputSpec:
-    """What a network expects: the rows kept, the input size and the colour scaling.
-
-    Attributes
-    ----------
-    crop : (float, float)
-        First and end row kept, as fractions of the frame height (full width is kept).
-    height, width : int
-        Network input size after resizing the crop.
-    colour : {"yuv", "imagenet"}
-        ``"yuv"``: BT.601 YUV scaled to about [-1, 1] (PilotNet's fixed normalisation
-        layer). ``"imagenet"``: RGB in [0, 1] standardised with ImageNet mean and std.
-    """
-
-    crop: tuple[float, float]
-    height: int
-    width: int
-    colour: Literal["yuv", "imagenet"]
-
-
-# Bojarski et al. 2016 (arXiv:1604.07316), Fig. 4: 66x200 YUV planes.
-PILOTNET_INPUT = InputSpec(crop=ROAD_CROP, height=66, width=200, colour="yuv")
-# He et al. 2016 / torchvision: 224x224 ImageNet-normalised RGB. The road crop of a 320x160
-# frame (320x75) is stretched vertically to a square, as in the usual transfer-learning
-# recipes, so the pretrained receptive fields see a 224-pixel-high road.
-RESNET50_INPUT = InputSpec(crop=ROAD_CROP, height=224, width=224, colour="imagenet")
 
 
 def crop_rows(height: int, crop: tuple[float, float]) -> tuple[int, int]:
@@ -104,12 +88,27 @@ def crop_resize(images: NDArray[np.uint8], spec: InputSpec) -> torch.Tensor:
 
 
 def normalise(batch: torch.Tensor, spec: InputSpec) -> torch.Tensor:
-    """Turn RGB pixel values in 0..255 ``(B, 3, H, W)`` into the network's float input."""
-    x = batch.float()
+    """Turn RGB pixel values in 0..255 into the network's float input.
+
+    Parameters
+    ----------
+    batch : (B, 3K, H, W) tensor
+        One RGB frame (K = 1) or K frames stacked along channels, each scaled alike.
+    spec : InputSpec
+        The colour scaling.
+
+    Returns
+    -------
+    (B, 3K, H, W) float32 tensor
+    """
+    b, c, h, w = batch.shape
+    x = batch.float().reshape(b * (c // 3), 3, h, w)
     if spec.colour == "yuv":
         yuv = torch.einsum("ij,bjhw->bihw", _RGB_TO_YUV.to(x.device), x)
         offset = torch.tensor([127.5, 0.0, 0.0], device=x.device).view(1, 3, 1, 1)
-        return (yuv - offset) / 127.5
-    mean = torch.tensor(IMAGENET_MEAN, device=x.device).view(1, 3, 1, 1) * 255.0
-    std = torch.tensor(IMAGENET_STD, device=x.device).view(1, 3, 1, 1) * 255.0
-    return (x - mean) / std
+        out = (yuv - offset) / 127.5
+    else:
+        mean = torch.tensor(IMAGENET_MEAN, device=x.device).view(1, 3, 1, 1) * 255.0
+        std = torch.tensor(IMAGENET_STD, device=x.device).view(1, 3, 1, 1) * 255.0
+        out = (x - mean) / std
+    return out.reshape(b, c, h, w)

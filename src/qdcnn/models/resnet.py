@@ -60,14 +60,19 @@ class ResNet(nn.Module):
         Bottleneck blocks per stage; ``(3, 4, 6, 3)`` is ResNet-50.
     num_classes : int
         Outputs of the final ``fc`` layer.
+    in_channels : int
+        Input planes of ``conv1``: 3, or 3K for K frames stacked along channels.
     """
 
     def __init__(
-        self, layers: tuple[int, int, int, int] = RESNET50_LAYERS, num_classes: int = 1000
+        self,
+        layers: tuple[int, int, int, int] = RESNET50_LAYERS,
+        num_classes: int = 1000,
+        in_channels: int = 3,
     ) -> None:
         super().__init__()
         self.inplanes = 64
-        self.conv1 = nn.Conv2d(3, 64, 7, stride=2, padding=3, bias=False)
+        self.conv1 = nn.Conv2d(in_channels, 64, 7, stride=2, padding=3, bias=False)
         self.bn1 = nn.BatchNorm2d(64)
         self.relu = nn.ReLU(inplace=True)
         self.maxpool = nn.MaxPool2d(kernel_size=3, stride=2, padding=1)
@@ -99,14 +104,14 @@ class ResNet(nn.Module):
         return nn.Sequential(*stage)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Logits ``(B, num_classes)`` for a ``(B, 3, H, W)`` batch (any H, W >= 32)."""
+        """Logits ``(B, num_classes)`` for a ``(B, in_channels, H, W)`` batch (H, W >= 32)."""
         x = self.maxpool(self.relu(self.bn1(self.conv1(x))))
         x = self.layer4(self.layer3(self.layer2(self.layer1(x))))
         out: torch.Tensor = self.fc(torch.flatten(self.avgpool(x), 1))
         return out
 
 
-def resnet50(num_classes: int = 1000) -> ResNet:
+def resnet50(num_classes: int = 1000, in_channels: int = 3) -> ResNet:
     """ResNet-50 with randomly initialised weights (25,557,032 parameters for 1000 classes).
 
     Examples
@@ -115,4 +120,4 @@ def resnet50(num_classes: int = 1000) -> ResNet:
     >>> tuple(model.state_dict()["layer4.2.bn3.running_var"].shape)
     (2048,)
     """
-    return ResNet(RESNET50_LAYERS, num_classes=num_classes)
+    return ResNet(RESNET50_LAYERS, num_classes=num_classes, in_channels=in_channels)

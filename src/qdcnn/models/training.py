@@ -1,18 +1,26 @@
-"""Training and inference of the CNN direction classifiers (PilotNet, ResNet-50).
+"""The CNN direction classifier users call: an estimator over network, trainer and model file.
 
-:class:`CNNDirectionClassifier` is a scikit-learn estimator (``get_params``,
-``clone``, ``score``) that maps RGB frames to 0 = left, 1 = straight, 2 = right.
-This module imports without torch; torch is loaded when a model is built.
+:class:`CNNDirectionClassifier` maps RGB frames to 0 = left, 1 = straight,
+2 = right. It composes three parts, as qiskit-machine-learning's
+``TrainableModel`` composes its network, optimiser and serialisation mixin:
+
+- the network, from the registry of :mod:`qdcnn.models.networks`
+  (PilotNet, ResNet-50, and any network registered there);
+- the training loop, :class:`qdcnn.models.trainer.Trainer`;
+- the model file, :mod:`qdcnn.models.persistence` (JSON header + safetensors).
+
+Parameters are stored as given in ``__init__`` (scikit-learn's convention, so
+``clone`` never fails) and validated by ``fit``. This module imports without
+torch; torch is loaded when a model is built.
 """
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -22,52 +30,48 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
+from qdcnn._validation import check_bool, check_choice, check_int
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.models.networks import NETWORKS, NetworkEntry, input_spec, network_entry
+from qdcnn.models.samples import (
+    N_CLASSES,
+    ExtraView,
+    class_weights,
+    context_windows,
+    split_train_val,
+)
 
 if TYPE_CHECKING:
     import torch
     from torch import nn
 
-    from qdcnn.models.preprocess import InputSpec
+    from qdcnn.models.specs import InputSpec
+    from qdcnn.models.trainer import FrameSamples, TrainSettings
 
+__all__ = [
+    "ARCHS",
+    "CNNDirectionClassifier",
+    "class_weights",
+    "inference_fps",
+    "input_spec",
+    "split_train_val",
+]
+
+#: The built-in networks; ``arch`` takes any name registered in :data:`NETWORKS`.
 Arch = Literal["pilotnet", "resnet50"]
-ARCHS: tuple[str, ...] = ("pilotnet", "resnet50")
-N_CLASSES = len(DIRECTIONS)
-FILE_FORMAT = "qdcnn-cnn-direction-classifier/1"
-_RESNET_WEIGHTS_NAME = "torchvision ResNet-50"
+#: Networks a classifier can train (the registry's names when this module was imported).
+ARCHS: tuple[str, ...] = tuple(NETWORKS)
+MAX_CONTEXT = 64
 
 
 def _torch(purpose: str) -> Any:
     return require("torch", purpose)
 
 
-def _default_threads() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
-def _check_int(name: str, value: object, lo: int, hi: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not lo <= value <= hi:
-        raise ParameterError(name, value, f"an integer in [{lo}, {hi}]")
-
-
-def _check_float(name: str, value: object, lo: float, hi: float, *, open_lo: bool = False) -> None:
-    ok = (
-        isinstance(value, int | float | np.floating)
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and (lo < value if open_lo else lo <= value)
-        and value <= hi
-    )
-    if not ok:
-        allowed = f"a number in ({lo}, {hi}]" if open_lo else f"a number in [{lo}, {hi}]"
-        raise ParameterError(name, value, allowed)
-
-
-def _as_images(images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+def _as_images(
+    images: ArrayLike | Sequence[NDArray[np.uint8]], source: str = "images"
+) -> NDArray[np.uint8]:
     if isinstance(images, np.ndarray):
         arr = images
     else:
@@ -75,162 +79,72 @@ def _as_images(images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.ui
             arr = np.stack([np.asarray(im) for im in images])  # type: ignore[union-attr]
         except (TypeError, ValueError):
             raise InputError(
-                "images", "expected a uint8 array (N, H, W, 3) or a list of equal-size frames"
+                source, "expected a uint8 array (N, H, W, 3) or a list of equal-size frames"
             ) from None
     if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[-1] != 3 or 0 in arr.shape:
         raise InputError(
-            "images",
+            source,
             f"expected a non-empty uint8 RGB array of shape (N, H, W, 3), "
             f"got {arr.dtype} of shape {arr.shape}",
         )
     return arr
 
 
-def _as_labels(labels: ArrayLike, n: int) -> NDArray[np.int64]:
+def _as_labels(labels: ArrayLike, n: int, source: str = "labels") -> NDArray[np.int64]:
     y = np.asarray(labels)
     if y.ndim != 1 or len(y) != n:
-        raise InputError("labels", f"expected {n} labels (one per image), got shape {y.shape}")
+        raise InputError(source, f"expected {n} labels (one per image), got shape {y.shape}")
     if y.dtype.kind == "f" and np.all(np.isfinite(y)) and np.all(y == np.round(y)):
         y = y.astype(np.int64)
     if y.dtype.kind not in "iu" or np.any((y < 0) | (y >= N_CLASSES)):
         bad = y[0] if y.dtype.kind not in "iu" else y[(y < 0) | (y >= N_CLASSES)][0]
         raise InputError(
-            "labels", f"values must be 0 (left), 1 (straight) or 2 (right); found {bad.item()!r}"
+            source, f"values must be 0 (left), 1 (straight) or 2 (right); found {bad.item()!r}"
         )
     return y.astype(np.int64)
 
 
-def class_weights(labels: NDArray[np.int64], *, mirrored: bool = False) -> NDArray[np.float64]:
-    """Balanced class weights ``n / (k * n_c)`` (scikit-learn's rule); 0 for absent classes.
-
-    Parameters
-    ----------
-    labels : (N,) int ndarray
-        Training labels, 0 = left, 1 = straight, 2 = right.
-    mirrored : bool
-        Count left and right as the flip augmentation sees them: each half of
-        ``n_left + n_right``, so frames flipped into a rare class are not over-weighted.
-
-    Examples
-    --------
-    >>> class_weights(np.array([0, 1, 1, 1]))
-    array([2.        , 0.66666667, 0.        ])
-    >>> class_weights(np.array([0, 1, 1, 1]), mirrored=True)
-    array([2.66666667, 0.44444444, 2.66666667])
-    """
-    counts = np.bincount(labels, minlength=N_CLASSES).astype(np.float64)
-    if mirrored:
-        counts[LEFT] = counts[RIGHT] = (counts[LEFT] + counts[RIGHT]) / 2
-    present = counts > 0
-    weights = np.zeros(N_CLASSES)
-    weights[present] = len(labels) / (present.sum() * counts[present])
-    return weights
+def _check_crop(crop: object) -> None:
+    ok = crop is None or (
+        isinstance(crop, tuple | list)
+        and len(crop) == 2
+        and all(isinstance(c, int | float) and not isinstance(c, bool) for c in crop)
+        and 0.0 <= crop[0] < crop[1] <= 1.0
+    )
+    if not ok:
+        raise ParameterError("crop", crop, "(top, bottom) with 0 <= top < bottom <= 1")
 
 
-def split_train_val(
-    n: int, val_fraction: float, *, blocks: int = 1, gap: int = 0
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Indices of a contiguous-block split of ``n`` frames in recording order.
-
-    ``val_fraction`` of the frames validate, as ``blocks`` contiguous blocks
-    spread evenly over the recording, the last one ending at the last frame
-    (``blocks=1``: the last frames). The ``gap`` frames on each side of a block
-    neither train nor validate. Frames are video: a random split would put
-    near-identical neighbours on both sides, and labels smoothed over
-    neighbouring frames leak across a block edge without the gap. One block at
-    the end of a short recording can miss a class altogether (a left bend, say),
-    so early stopping would favour epochs that never predict it; several blocks
-    sample several stretches of road. On short inputs the split degrades
-    gracefully: a block is at least ``2 * gap`` frames long (fewer blocks
-    otherwise), and the gaps are shortened so that they take at most half of
-    the frames that do not validate. At least one frame validates when
-    ``val_fraction > 0`` and ``n >= 3``.
-
-    Examples
-    --------
-    >>> train, val = split_train_val(10, 0.2)
-    >>> train.tolist(), val.tolist()
-    ([0, 1, 2, 3, 4, 5, 6, 7], [8, 9])
-    >>> train, val = split_train_val(20, 0.2, blocks=2, gap=1)
-    >>> train.tolist(), val.tolist()
-    ([0, 1, 2, 3, 4, 5, 6, 11, 12, 13, 14, 15, 16], [8, 9, 18, 19])
-    """
-    n_val = round(n * val_fraction)
-    if val_fraction > 0 and n_val == 0 and n >= 3:
-        n_val = 1
-    n_blocks = max(1, min(blocks, n_val // max(1, 2 * gap)))
-    gap = min(gap, (n - n_val) // (4 * n_blocks))
-    sizes = np.diff(np.linspace(0, n_val, n_blocks + 1).round().astype(np.int64))
-    ends = np.linspace(0, n, n_blocks + 1).round().astype(np.int64)[1:]
-    in_val = np.zeros(n, dtype=bool)
-    near_val = np.zeros(n, dtype=bool)
-    for end, size in zip(ends, sizes, strict=True):
-        if size:
-            in_val[end - size : end] = True
-            near_val[max(end - size - gap, 0) : min(end + gap, n)] = True
-    train = np.flatnonzero(~near_val).astype(np.int64)
-    if len(train) < 2:
-        raise InputError("images", f"{n} frames leave {len(train)} for training; need at least 2")
-    return train, np.flatnonzero(in_val).astype(np.int64)
+def _check_network_params(value: object) -> None:
+    ok = value is None or (
+        isinstance(value, Mapping)
+        and all(isinstance(k, str) for k in value)
+        and all(_is_plain(v) for v in value.values())
+    )
+    if not ok:
+        raise ParameterError(
+            "network_params", value, "None or a dict of str to plain values (numbers, strings)"
+        )
 
 
-def _batches(order: NDArray[np.int64], batch_size: int) -> list[NDArray[np.int64]]:
-    """Consecutive batches of ``order``; a last batch of one joins the one before.
-
-    BatchNorm cannot normalise a batch of one frame in training mode.
-    """
-    chunks = [order[i : i + batch_size] for i in range(0, len(order), batch_size)]
-    if len(chunks) > 1 and len(chunks[-1]) == 1:
-        chunks[-2] = np.concatenate(chunks[-2:])
-        chunks.pop()
-    return chunks
-
-
-@contextmanager
-def _torch_session(num_threads: int, seed: int | None, device: torch.device) -> Iterator[None]:
-    """Set threads, seeds and deterministic kernels for one call; restore them afterwards."""
-    torch = _torch("the CNN baselines")
-    old_threads = torch.get_num_threads()
-    old_deterministic = torch.are_deterministic_algorithms_enabled()
-    old_warn = torch.is_deterministic_algorithms_warn_only_enabled()
-    old_cudnn = (torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark)
-    devices = [device.index or 0] if device.type == "cuda" else []
-    torch.set_num_threads(num_threads)
-    try:
-        with torch.random.fork_rng(devices=devices):
-            if seed is not None:
-                torch.manual_seed(seed)
-                torch.use_deterministic_algorithms(True, warn_only=True)
-                torch.backends.cudnn.deterministic = True
-                torch.backends.cudnn.benchmark = False
-            yield
-    finally:
-        torch.set_num_threads(old_threads)
-        torch.use_deterministic_algorithms(old_deterministic, warn_only=old_warn)
-        torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = old_cudnn
+def _is_plain(value: object) -> bool:
+    """A JSON value that survives a model file unchanged (so ``load`` rebuilds the network)."""
+    if value is None or isinstance(value, bool | int | str):
+        return True
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, list):
+        return all(_is_plain(v) for v in value)
+    if isinstance(value, Mapping):
+        return all(isinstance(k, str) and _is_plain(v) for k, v in value.items())
+    return False
 
 
-def build_model(arch: str, num_classes: int = N_CLASSES) -> nn.Module:
-    """A freshly initialised PilotNet or ResNet-50 with ``num_classes`` outputs."""
-    if arch == "pilotnet":
-        from qdcnn.models.pilotnet import PilotNet
-
-        return PilotNet(num_classes=num_classes)
-    if arch == "resnet50":
-        from qdcnn.models.resnet import resnet50
-
-        return resnet50(num_classes=num_classes)
-    raise ParameterError("arch", arch, "'pilotnet' or 'resnet50'")
-
-
-def input_spec(arch: str, crop: tuple[float, float] | None = None) -> InputSpec:
-    """Preprocessing of ``arch`` (:mod:`qdcnn.models.preprocess`), optionally with another crop."""
-    from dataclasses import replace
-
-    from qdcnn.models.preprocess import PILOTNET_INPUT, RESNET50_INPUT
-
-    spec = PILOTNET_INPUT if arch == "pilotnet" else RESNET50_INPUT
-    return spec if crop is None else replace(spec, crop=(float(crop[0]), float(crop[1])))
+def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
+    return {
+        k: (str(v) if isinstance(v, Path) else (list(v) if isinstance(v, tuple) else v))
+        for k, v in params.items()
+    }
 
 
 class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
@@ -247,6 +161,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     put near-duplicate neighbours on both sides. The weights of the epoch with
     the lowest validation loss are kept.
 
+    The network comes from the registry of :mod:`qdcnn.models.networks`, the
+    training loop is :class:`qdcnn.models.trainer.Trainer` and the model file is
+    :mod:`qdcnn.models.persistence`'s (JSON header + safetensors, never pickle).
+    Parameters are stored as given and checked by :meth:`fit`.
+
     The defaults suit recordings of a few hundred to a few thousand frames:
     small batches give enough optimisation steps in 25 epochs (a 600-frame
     recording gives 8 steps per epoch at 64 frames), the unweighted loss targets
@@ -258,9 +177,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     Parameters
     ----------
-    arch : {"pilotnet", "resnet50"}
+    arch : {"pilotnet", "resnet50"} or another registered network
         PilotNet (Bojarski et al. 2016, 66x200 YUV input) or ResNet-50 (He et
-        al. 2016, 224x224 ImageNet-normalised input; the paper's baseline).
+        al. 2016, 224x224 ImageNet-normalised input; the paper's baseline); any
+        name in :data:`qdcnn.models.networks.NETWORKS`.
     epochs : int
         Maximum training epochs (the paper: 25).
     batch_size : int
@@ -298,17 +218,23 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         Test-time flip averaging: the probabilities of a frame and of its mirror
         image (left and right swapped) are averaged. Doubles inference cost.
     weights : path or None
-        Initial weights from a local file. For ResNet-50 a torchvision-format
-        ImageNet ``state_dict`` whose ``fc`` layer is replaced by a 3-class head;
-        for PilotNet a complete PilotNet ``state_dict``. Never downloaded.
+        Initial weights from a local file: a ``state_dict`` as a PyTorch file
+        (read with ``torch.load(weights_only=True)``, which runs no code) or as
+        safetensors (a saved classifier qualifies). For ResNet-50 a
+        torchvision-format ImageNet ``state_dict`` whose ``fc`` layer is replaced
+        by a 3-class head; for PilotNet a complete PilotNet ``state_dict``. With
+        ``context > 1`` RGB first-layer kernels are inflated to the stacked
+        frames. Never downloaded.
     device : str
         ``"auto"`` (CUDA, then Apple MPS, then CPU) or a torch device string.
     seed : int
         Seeds initialisation, dropout, shuffling and augmentation; the same seed
         gives identical predictions on the same device and thread count.
     checkpoint_dir : path or None
-        When set, ``last.pt`` (model, optimiser, history) is written after each
-        epoch and ``best.pt`` (loadable with :meth:`load`) whenever validation improves.
+        When set, ``last.safetensors`` (network, AdamW state, scheduler state,
+        history: :func:`qdcnn.models.persistence.load_checkpoint`) is written
+        after each epoch and ``best.safetensors`` (loadable with :meth:`load`)
+        whenever validation improves.
     progress : bool
         Show a Rich progress bar on stderr while fitting.
     num_threads : int or None
@@ -317,11 +243,23 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     crop : (float, float) or None
         Rows kept, as fractions of the frame height; default ``(0.375, 0.84375)``
         (rows 60..135 of a 160-row Udacity frame).
+    context : int
+        Frames per input, K: frame ``i`` is fed with frames ``i - K + 1 .. i`` of
+        the array given to :meth:`fit` or :meth:`predict` stacked along channels
+        (the first frames repeat frame 0), so pass whole recordings in order. The
+        network gets ``3K`` input channels; augmentation flips, brightens, shades
+        and shifts the K frames of a sample alike.
+    network_params : dict or None
+        Further keyword arguments of the network's factory
+        (:func:`qdcnn.models.networks.build_network`), such as ``{"dropout": 0.5}``
+        for PilotNet; plain JSON values, kept in saved files.
 
     Attributes
     ----------
     model_ : torch.nn.Module
         The trained network (in eval mode).
+    input_spec_ : InputSpec
+        The preprocessing the network was trained with (kept in saved files).
     history_ : list of dict
         Per epoch: ``epoch``, ``train_loss``, ``val_loss``, ``val_accuracy``
         (``None`` without validation), ``lr`` (the learning rate at the epoch's
@@ -336,11 +274,13 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     >>> clf = CNNDirectionClassifier("pilotnet", epochs=1, progress=False)
     >>> clf.get_params()["arch"]
     'pilotnet'
+    >>> CNNDirectionClassifier(epochs=0).get_params()["epochs"]  # checked by fit, not here
+    0
     """
 
     def __init__(
         self,
-        arch: Arch = "pilotnet",
+        arch: str = "pilotnet",
         *,
         epochs: int = 25,
         batch_size: int = 16,
@@ -363,6 +303,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         progress: bool = True,
         num_threads: int | None = None,
         crop: tuple[float, float] | None = None,
+        context: int = 1,
+        network_params: Mapping[str, Any] | None = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -386,75 +328,75 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.progress = progress
         self.num_threads = num_threads
         self.crop = crop
-        self._check_params()
+        self.context = context
+        self.network_params = network_params
 
     # ----------------------------------------------------------------- checks
-    def _check_params(self) -> None:
-        if self.arch not in ARCHS:
-            raise ParameterError("arch", self.arch, "'pilotnet' or 'resnet50'")
-        _check_int("epochs", self.epochs, 1, 100_000)
-        _check_int("batch_size", self.batch_size, 2 if self.arch == "resnet50" else 1, 65_536)
-        _check_float("lr", self.lr, 0.0, 10.0, open_lo=True)
-        _check_float("weight_decay", self.weight_decay, 0.0, 10.0)
-        _check_float("val_fraction", self.val_fraction, 0.0, 0.9)
-        _check_int("val_blocks", self.val_blocks, 1, 1000)
-        _check_int("val_gap", self.val_gap, 0, 100_000)
-        _check_int("patience", self.patience, 0, 100_000)
-        _check_float("max_shift", self.max_shift, 0.0, 0.5)
-        _check_float("label_smoothing", self.label_smoothing, 0.0, 0.49)
-        if self.class_weight not in ("balanced", None):
-            raise ParameterError("class_weight", self.class_weight, "'balanced' or None")
-        if self.lr_schedule not in ("constant", "cosine"):
-            raise ParameterError("lr_schedule", self.lr_schedule, "'constant' or 'cosine'")
-        _check_int("seed", self.seed, 0, 2**63 - 1)
-        if self.num_threads is not None:
-            _check_int("num_threads", self.num_threads, 1, 4096)
-        if not isinstance(self.device, str) or not self.device:
-            raise ParameterError("device", self.device, "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'")
-        if self.crop is not None:
-            ok = (
-                isinstance(self.crop, tuple | list)
-                and len(self.crop) == 2
-                and all(isinstance(c, int | float) for c in self.crop)
-                and 0.0 <= self.crop[0] < self.crop[1] <= 1.0
-            )
-            if not ok:
-                raise ParameterError("crop", self.crop, "(top, bottom) with 0 <= top < bottom <= 1")
+    def _checked(self) -> tuple[NetworkEntry, TrainSettings]:
+        """Validate every parameter; the network entry and the trainer's settings."""
+        from qdcnn.models.trainer import TrainSettings
 
-    def _resolve_device(self) -> torch.device:
-        torch = _torch("the CNN baselines")
-        if self.device == "auto":
-            if torch.cuda.is_available():
-                return torch.device("cuda")
-            mps = getattr(torch.backends, "mps", None)
-            return torch.device("mps" if mps is not None and mps.is_available() else "cpu")
-        try:
-            dev = torch.device(self.device)
-        except (RuntimeError, ValueError):
-            raise ParameterError(
-                "device", self.device, "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
-            ) from None
-        if dev.type == "cuda" and not torch.cuda.is_available():
-            raise ParameterError("device", self.device, "a device present here (no CUDA GPU found)")
-        return dev
+        entry = network_entry(self.arch)
+        settings = TrainSettings(
+            epochs=self.epochs,
+            batch_size=self.batch_size,
+            lr=self.lr,
+            weight_decay=self.weight_decay,
+            val_fraction=self.val_fraction,
+            val_blocks=self.val_blocks,
+            val_gap=self.val_gap,
+            patience=self.patience,
+            augment=self.augment,
+            max_shift=self.max_shift,
+            class_weight=self.class_weight,
+            label_smoothing=self.label_smoothing,
+            lr_schedule=self.lr_schedule,
+            seed=self.seed,
+            device=self.device,
+            num_threads=self.num_threads,
+            checkpoint_dir=self.checkpoint_dir,
+        ).checked(min_batch_size=entry.min_batch_size)
+        check_bool("tta", self.tta)
+        check_bool("progress", self.progress)
+        if self.weights is not None and not isinstance(self.weights, str | os.PathLike):
+            raise ParameterError("weights", self.weights, "a weights file path or None")
+        _check_crop(self.crop)
+        check_int("context", self.context, 1, MAX_CONTEXT)
+        _check_network_params(self.network_params)
+        return entry, settings
+
+    def _network_kw(self) -> dict[str, Any]:
+        return dict(self.network_params or {})
 
     def _threads(self) -> int:
-        return self.num_threads if self.num_threads is not None else _default_threads()
+        from qdcnn.models.trainer import default_threads
 
-    def _new_model(self) -> nn.Module:
-        model = build_model(self.arch)
-        if self.weights is not None:
-            from qdcnn.models.weights import load_weights
+        return self.num_threads if self.num_threads is not None else default_threads()
 
-            if self.arch == "resnet50":
-                load_weights(model, self.weights, name=_RESNET_WEIGHTS_NAME, skip_prefixes=("fc.",))
-            else:
-                load_weights(model, self.weights, name="qdcnn PilotNet")
-        return model
+    def _set_fitted(
+        self,
+        network: nn.Module,
+        spec: InputSpec,
+        history: list[dict[str, Any]],
+        best_epoch: int,
+    ) -> None:
+        from qdcnn.models.trainer import place, resolve_device
+
+        self.device_ = resolve_device(self.device)
+        self.model_ = place(network, self.device_).eval()
+        self.input_spec_ = spec
+        self.context_ = int(self.context)
+        self.history_ = history
+        self.best_epoch_ = best_epoch
+        self.classes_ = np.arange(N_CLASSES)
 
     # -------------------------------------------------------------- training
     def fit(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], labels: ArrayLike
+        self,
+        images: ArrayLike | Sequence[NDArray[np.uint8]],
+        labels: ArrayLike,
+        *,
+        extra_views: Sequence[ExtraView] = (),
     ) -> CNNDirectionClassifier:
         """Train on frames in recording order.
 
@@ -464,187 +406,86 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             RGB frames in the order they were recorded.
         labels : (N,) int array
             0 = left, 1 = straight, 2 = right.
+        extra_views : sequence of ExtraView
+            Further views of the same frames with their own labels, such as the
+            left and right cameras with corrected steering
+            (:func:`qdcnn.models.samples.side_camera_views`). The view of frame
+            ``i`` trains only when frame ``i`` trains: never when it validates.
 
         Returns
         -------
         self
+
+        Raises
+        ------
+        ParameterError
+            An invalid parameter (they are checked here, not in ``__init__``).
+        InputError
+            Images, labels or views of the wrong type or shape, or a bad weights file.
         """
-        self._check_params()
-        torch = _torch("training a CNN direction classifier")
-        from torch.nn import functional as F
-
-        from qdcnn.models.augment import augment_batch
+        entry, settings = self._checked()
+        _torch("training a CNN direction classifier")
+        from qdcnn.models.networks import build_network
         from qdcnn.models.preprocess import crop_resize, normalise
+        from qdcnn.models.trainer import FrameSamples, Trainer, resolve_device, rich_progress
 
-        x_np = _as_images(images)
-        y_np = _as_labels(labels, len(x_np))
-        n = len(x_np)
-        train_idx, val_idx = split_train_val(
-            n, self.val_fraction, blocks=self.val_blocks, gap=self.val_gap
-        )
-        n_train, n_val = len(train_idx), len(val_idx)
+        x = _as_images(images)
+        y = _as_labels(labels, len(x))
+        views = [_as_view(v, x.shape) for v in extra_views]
+        resolve_device(self.device)  # fail before the work
         spec = input_spec(self.arch, self.crop)
-        device = self._resolve_device()
-
-        with _torch_session(self._threads(), self.seed, device):
-            model = _place(self._new_model(), device)  # first: a bad weights file fails fast
-            frames = crop_resize(x_np, spec)
-            targets = torch.from_numpy(y_np)
-            optimiser = torch.optim.AdamW(
-                model.parameters(), lr=self.lr, weight_decay=self.weight_decay
+        k = int(self.context)
+        # first: a bad weights file fails fast
+        network = build_network(
+            self.arch, 3 * k, weights=self.weights, seed=self.seed, **self._network_kw()
+        )
+        samples = FrameSamples.sequence(crop_resize(x, spec), y, k)
+        extra, extra_of = _extra_samples(views, spec, k)
+        with rich_progress(self.arch, settings.epochs, enabled=self.progress) as callbacks:
+            trainer = Trainer(
+                settings,
+                transform=partial(normalise, spec=spec),
+                on_step=callbacks[0],
+                on_epoch=callbacks[1],
+                checkpoint_meta=self._meta(spec, k),
+                min_batch_size=entry.min_batch_size,
             )
-            weight_cpu = torch.tensor(
-                class_weights(y_np[train_idx], mirrored=self.augment)
-                if self.class_weight == "balanced"
-                else np.ones(N_CLASSES),
-                dtype=torch.float32,
-            )
-            weight = weight_cpu.to(device)
-            smoothing = float(self.label_smoothing)
-            shuffle_gen = torch.Generator().manual_seed(self.seed)
-            augment_gen = torch.Generator().manual_seed(self.seed + 1)
-
-            def evaluate(idx: NDArray[np.int64]) -> tuple[float, float]:
-                model.eval()
-                loss_sum, correct = 0.0, 0
-                with torch.inference_mode():
-                    for chunk in _batches(idx, max(self.batch_size, 64)):
-                        rows = torch.from_numpy(chunk)
-                        xb = normalise(frames[rows].to(device), spec)
-                        yb = targets[rows].to(device)
-                        logits = model(xb)
-                        loss_sum += float(
-                            F.cross_entropy(
-                                logits,
-                                yb,
-                                weight=weight,
-                                reduction="sum",
-                                label_smoothing=smoothing,
-                            )
-                        )
-                        correct += int((logits.argmax(1) == yb).sum())
-                # normalise as the weighted mean reduction does
-                denominator = float(weight_cpu[targets[torch.from_numpy(idx)]].sum()) or 1.0
-                return loss_sum / denominator, correct / len(idx)
-
-            history: list[dict[str, Any]] = []
-            best_loss, best_epoch, best_state = math.inf, 0, None
-            n_steps = self.epochs * len(_batches(np.arange(n_train), self.batch_size))
-            scheduler = (
-                torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, T_max=n_steps)
-                if self.lr_schedule == "cosine"
-                else None
-            )
-            with _progress_bar(self.progress) as bar:
-                task = bar.add_task(f"{self.arch} epoch 1/{self.epochs}", total=n_steps)
-                for epoch in range(1, self.epochs + 1):
-                    start = time.perf_counter()
-                    model.train()
-                    order = train_idx[torch.randperm(n_train, generator=shuffle_gen).numpy()]
-                    loss_sum, weight_sum = 0.0, 0.0
-                    for idx in _batches(order, self.batch_size):
-                        rows = torch.from_numpy(idx)
-                        xb, yb = frames[rows].to(device), targets[rows].to(device)
-                        if self.augment:
-                            xb, yb = augment_batch(
-                                xb, yb, augment_gen, max_shift=float(self.max_shift)
-                            )
-                        loss = F.cross_entropy(
-                            model(normalise(xb, spec)),
-                            yb,
-                            weight=weight,
-                            label_smoothing=smoothing,
-                        )
-                        optimiser.zero_grad(set_to_none=True)
-                        loss.backward()
-                        optimiser.step()
-                        if scheduler is not None:
-                            scheduler.step()
-                        w = float(weight[yb].sum())
-                        loss_sum += loss.item() * w
-                        weight_sum += w
-                        bar.advance(task)
-                    record: dict[str, Any] = {
-                        "epoch": epoch,
-                        "train_loss": loss_sum / (weight_sum or 1.0),
-                        "val_loss": None,
-                        "val_accuracy": None,
-                        "lr": optimiser.param_groups[0]["lr"],
-                    }
-                    if n_val:
-                        record["val_loss"], record["val_accuracy"] = evaluate(val_idx)
-                    record["seconds"] = time.perf_counter() - start
-                    history.append(record)
-                    score = record["val_loss"] if n_val else -epoch  # no validation: keep the last
-                    improved = score < best_loss
-                    if improved:
-                        best_loss, best_epoch = score, epoch
-                        best_state = copy.deepcopy(model.state_dict())
-                    bar.update(task, description=_describe(self.arch, record, self.epochs))
-                    if self.checkpoint_dir is not None:
-                        self._write_checkpoints(model, optimiser, history, best_epoch, improved)
-                    if n_val and self.patience and epoch - best_epoch >= self.patience:
-                        break
-            assert best_state is not None  # at least one epoch ran
-            model.load_state_dict(best_state)
-            model.eval()
-
-        self.model_ = model
-        self.device_ = device
-        self.history_ = history
-        self.best_epoch_ = best_epoch
-        self.classes_ = np.arange(N_CLASSES)
+            result = trainer.fit(network, samples, extra=extra, extra_of=extra_of)
+        self._set_fitted(result.network, spec, result.history, result.best_epoch)
         return self
-
-    def _write_checkpoints(
-        self,
-        model: nn.Module,
-        optimiser: torch.optim.Optimizer,
-        history: list[dict[str, Any]],
-        best_epoch: int,
-        improved: bool,
-    ) -> None:
-        torch = _torch("writing checkpoints")
-        folder = Path(self.checkpoint_dir)  # type: ignore[arg-type]
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError(folder, f"cannot create checkpoint folder: {exc.strerror}") from None
-        state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-        if improved:
-            _atomic_save(torch, self._payload(state, history, best_epoch), folder / "best.pt")
-        last = {
-            "format": FILE_FORMAT + "+checkpoint",
-            "arch": self.arch,
-            "epoch": len(history),
-            "best_epoch": best_epoch,
-            "state_dict": state,
-            "optimizer": optimiser.state_dict(),
-            "history": history,
-        }
-        _atomic_save(torch, last, folder / "last.pt")
 
     # -------------------------------------------------------------- inference
     def predict_proba(self, images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.float64]:
         """Class probabilities ``(N, 3)`` for left, straight, right."""
         check_is_fitted(self, "model_")
         torch = _torch("CNN inference")
-        from qdcnn.models.preprocess import crop_resize, normalise
+        from qdcnn.models.trainer import torch_session
 
-        x_np = _as_images(images)
-        spec = input_spec(self.arch, self.crop)
-        out = np.empty((len(x_np), N_CLASSES), dtype=np.float64)
-        step = max(self.batch_size, 64)
+        x = _as_images(images)
+        out = np.empty((len(x), N_CLASSES), dtype=np.float64)
+        step = max(int(self.batch_size), 64)
         self.model_.eval()
-        with _torch_session(self._threads(), None, self.device_), torch.inference_mode():
-            for start in range(0, len(x_np), step):
-                xb = normalise(crop_resize(x_np[start : start + step], spec).to(self.device_), spec)
+        with torch_session(self._threads(), None, self.device_), torch.inference_mode():
+            for start in range(0, len(x), step):
+                xb = self._inputs(x, start, min(start + step, len(x)))
                 proba = torch.softmax(self.model_(xb).float(), 1)
                 if self.tta:
                     mirrored = torch.softmax(self.model_(xb.flip(-1)).float(), 1)
                     proba = (proba + mirrored[:, [RIGHT, STRAIGHT, LEFT]]) / 2
                 out[start : start + step] = proba.cpu().numpy()
         return out
+
+    def _inputs(self, x: NDArray[np.uint8], start: int, stop: int) -> torch.Tensor:
+        """Network input of frames ``start .. stop - 1``, with their context frames."""
+        from qdcnn.models.preprocess import crop_resize, normalise
+
+        k = self.context_
+        first = max(start - k + 1, 0)
+        pool = crop_resize(x[first:stop], self.input_spec_)
+        windows = context_windows(stop, k)[start:] - first
+        stacked = pool[windows]  # (B, K, 3, h, w)
+        b, _, c, h, w = stacked.shape
+        return normalise(stacked.reshape(b, k * c, h, w).to(self.device_), self.input_spec_)
 
     def predict(self, images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right."""
@@ -657,42 +498,82 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         sample_weight: ArrayLike | None = None,
     ) -> float:
         """Accuracy of :meth:`predict` against ``labels``."""
-        x_np = _as_images(images)
-        y = _as_labels(labels, len(x_np))
-        hits = (self.predict(x_np) == y).astype(np.float64)
+        x = _as_images(images)
+        y = _as_labels(labels, len(x))
+        hits = (self.predict(x) == y).astype(np.float64)
         if sample_weight is None:
             return float(hits.mean())
         return float(np.average(hits, weights=np.asarray(sample_weight, dtype=np.float64)))
 
-    # ------------------------------------------------------------ persistence
-    def _payload(
-        self, state: dict[str, torch.Tensor], history: list[dict[str, Any]], best_epoch: int
-    ) -> dict[str, Any]:
-        params = {
-            k: (str(v) if isinstance(v, Path) else (list(v) if isinstance(v, tuple) else v))
-            for k, v in self.get_params().items()
-        }
+    # --------------------------------------------------- building and files
+    @classmethod
+    def from_network(
+        cls, network: nn.Module, arch: str = "pilotnet", **params: Any
+    ) -> CNNDirectionClassifier:
+        """A classifier ready for inference with a given network (trained or not).
+
+        Parameters
+        ----------
+        network : nn.Module
+            Maps ``arch``'s preprocessed frames ``(B, 3 * context, H, W)`` to logits
+            ``(B, 3)``, for example :func:`qdcnn.models.networks.build_network`'s.
+        arch : str
+            The registered network whose input spec (crop, size, colour) applies.
+        **params
+            Further constructor parameters (``device``, ``tta``, ``context``, ...).
+
+        Raises
+        ------
+        ParameterError
+            An invalid parameter.
+
+        Examples
+        --------
+        >>> from qdcnn.models.networks import build_network
+        >>> net = build_network("pilotnet", seed=0)  # doctest: +SKIP
+        >>> clf = CNNDirectionClassifier.from_network(net, device="cpu")  # doctest: +SKIP
+        """
+        clf = cls(arch, **params)
+        clf._checked()
+        clf._set_fitted(network, input_spec(arch, clf.crop), [], 0)
+        return clf
+
+    def _meta(self, spec: InputSpec, context: int) -> dict[str, Any]:
+        """Header fields of a model file, except ``history`` and ``best_epoch``."""
+        from qdcnn.models.persistence import spec_to_meta
+
         return {
-            "format": FILE_FORMAT,
-            "arch": self.arch,
-            "params": params,
-            "state_dict": state,
-            "history": history,
-            "best_epoch": best_epoch,
+            "architecture": self.arch,
+            "params": {**_plain_params(self.get_params()), "context": context},
+            "class_names": list(DIRECTIONS),
+            "input_spec": spec_to_meta(spec),
+            "context": context,
+            "in_channels": 3 * context,
         }
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the trained model, its settings and history to ``path`` (a torch file)."""
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the trained network, its settings and history to ``path`` (safetensors + header).
+
+        Returns
+        -------
+        Path
+            The file written (atomically: never half-written).
+        """
         check_is_fitted(self, "model_")
-        torch = _torch("saving a CNN direction classifier")
-        state = {k: v.detach().cpu() for k, v in self.model_.state_dict().items()}
-        _atomic_save(torch, self._payload(state, self.history_, self.best_epoch_), Path(path))
+        from qdcnn.models.persistence import save_network
+
+        meta = {
+            **self._meta(self.input_spec_, self.context_),
+            "history": self.history_,
+            "best_epoch": self.best_epoch_,
+        }
+        return save_network(path, self.model_, meta)
 
     @classmethod
     def load(
         cls, path: str | os.PathLike[str], *, device: str | None = None
     ) -> CNNDirectionClassifier:
-        """Read a classifier written by :meth:`save` (or a ``best.pt`` checkpoint).
+        """Read a classifier written by :meth:`save` (or a ``best.safetensors`` checkpoint).
 
         Parameters
         ----------
@@ -704,95 +585,107 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         Raises
         ------
         InputError
-            The file is missing, corrupt or not a saved classifier.
+            The file is missing, empty, corrupt or truncated, pickle-based (an
+            older ``.pt`` model: never unpickled), not a CNN direction classifier,
+            or its header and weights disagree (architecture, names, shapes).
         """
-        from qdcnn.models.weights import as_state_dict, check_state_dict, read_weights_file
+        _torch("loading a CNN direction classifier")
+        from qdcnn.models.networks import build_network
+        from qdcnn.models.persistence import load_state_arrays, read_network_file, spec_from_meta
 
-        obj = read_weights_file(path)
-        if not isinstance(obj, dict) or obj.get("format") != FILE_FORMAT:
-            raise InputError(path, "not a saved qdcnn CNN direction classifier")
-        params = dict(obj.get("params") or {})
-        if params.get("crop") is not None:
-            params["crop"] = tuple(params["crop"])
-        if device is not None:
-            params["device"] = device
+        meta, arrays = read_network_file(path)
+        clf = _classifier_from_meta(cls, meta, path, device)
+        spec = spec_from_meta(meta.get("input_spec"), path)
         try:
-            clf = cls(**params)
-        except (TypeError, ParameterError) as exc:
+            network = build_network(clf.arch, 3 * int(clf.context), seed=0, **clf._network_kw())
+        except ParameterError as exc:
             raise InputError(path, f"saved settings are invalid: {exc}") from None
-        model = build_model(clf.arch)
-        state = as_state_dict(obj.get("state_dict"), path)
-        checked = check_state_dict(state, model, path, name=f"qdcnn {clf.arch}")
-        model.load_state_dict(checked, strict=False)
-        clf.device_ = clf._resolve_device()
-        clf.model_ = _place(model, clf.device_).eval()
-        clf.history_ = list(obj.get("history") or [])
-        clf.best_epoch_ = int(obj.get("best_epoch") or 0)
-        clf.classes_ = np.arange(N_CLASSES)
+        load_state_arrays(network, arrays, path, name=f"qdcnn {clf.arch}")
+        history, best_epoch = _history_from_meta(meta, path)
+        clf._set_fitted(network, spec, history, best_epoch)
         return clf
 
-    def _init_untrained(self) -> CNNDirectionClassifier:
-        """Make the estimator usable for inference with initial weights (benchmarks)."""
-        self._check_params()
-        self.device_ = self._resolve_device()
-        with _torch_session(self._threads(), self.seed, self.device_):
-            self.model_ = _place(self._new_model(), self.device_).eval()
-        self.history_, self.best_epoch_, self.classes_ = [], 0, np.arange(N_CLASSES)
-        return self
 
-
-def _place(model: nn.Module, device: torch.device) -> nn.Module:
-    """Move ``model`` to ``device``, channels-last on CPU and CUDA (faster convolutions)."""
-    torch = _torch("the CNN baselines")
-    if device.type in ("cpu", "cuda"):
-        # memory_format is a documented keyword that torch's type stubs omit
-        return model.to(device, memory_format=torch.channels_last)  # type: ignore[call-overload]
-    return model.to(device)
-
-
-def _describe(arch: str, record: dict[str, Any], epochs: int) -> str:
-    text = f"{arch} epoch {record['epoch']}/{epochs} loss {record['train_loss']:.3f}"
-    if record["val_loss"] is not None:
-        text += f" val {record['val_loss']:.3f} acc {record['val_accuracy']:.2f}"
-    return text
-
-
-@contextmanager
-def _progress_bar(enabled: bool) -> Iterator[Any]:
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        disable=not enabled,
-    ) as bar:
-        yield bar
-
-
-def _atomic_save(torch: Any, payload: dict[str, Any], path: Path) -> None:
-    tmp = path.with_name(path.name + ".tmp")
+def _classifier_from_meta(
+    cls: type[CNNDirectionClassifier],
+    meta: dict[str, Any],
+    path: str | os.PathLike[str],
+    device: str | None,
+) -> CNNDirectionClassifier:
+    """The estimator a file's header describes, its architecture and settings checked."""
+    arch = meta.get("architecture")
+    if not isinstance(arch, str) or arch not in NETWORKS:
+        known = ", ".join(map(repr, NETWORKS))
+        raise InputError(path, f"architecture {arch!r} is not a known network ({known})")
+    if meta.get("class_names") != list(DIRECTIONS):
+        raise InputError(
+            path, f"class names {meta.get('class_names')!r} are not {list(DIRECTIONS)!r}"
+        )
+    params = meta.get("params")
+    if not isinstance(params, dict):
+        raise InputError(path, "header field 'params' is missing or not an object")
+    params = dict(params)
+    if isinstance(params.get("crop"), list):
+        params["crop"] = tuple(params["crop"])
+    if device is not None:
+        params["device"] = device
     try:
-        torch.save(payload, tmp)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(path, f"cannot write: {exc.strerror or exc}") from None
+        clf = cls(**params)
+        clf._checked()
+    except (TypeError, ParameterError) as exc:
+        raise InputError(path, f"saved settings are invalid: {exc}") from None
+    if clf.arch != arch:
+        raise InputError(path, f"header architecture {arch!r} but settings arch {clf.arch!r}")
+    in_channels = meta.get("in_channels", 3 * clf.context)
+    if in_channels != 3 * clf.context:
+        raise InputError(
+            path, f"header in_channels {in_channels!r} but context {clf.context} (3 per frame)"
+        )
+    return clf
+
+
+def _history_from_meta(
+    meta: dict[str, Any], path: str | os.PathLike[str]
+) -> tuple[list[dict[str, Any]], int]:
+    history = meta.get("history", [])
+    if not isinstance(history, list) or not all(isinstance(h, dict) for h in history):
+        raise InputError(path, "header field 'history' is not a list of epoch records")
+    best = meta.get("best_epoch", 0)
+    if isinstance(best, bool) or not isinstance(best, int) or not 0 <= best <= len(history):
+        raise InputError(path, f"header best_epoch {best!r} is not an epoch of its history")
+    return history, best
+
+
+def _as_view(view: object, shape: tuple[int, ...]) -> ExtraView:
+    if not isinstance(view, ExtraView):
+        raise InputError("extra_views", f"expected ExtraView items, got {type(view).__name__}")
+    images = _as_images(view.images, view.name)
+    if images.shape != shape:
+        raise InputError(view.name, f"frames of shape {images.shape}, the images are {shape}")
+    return ExtraView(images, _as_labels(view.labels, shape[0], f"{view.name} labels"), view.name)
+
+
+def _extra_samples(
+    views: list[ExtraView], spec: InputSpec, context: int
+) -> tuple[FrameSamples | None, NDArray[np.int64] | None]:
+    """All views as one set of extra samples, and the frame each accompanies."""
+    if not views:
+        return None, None
+    torch = _torch("training a CNN direction classifier")
+    from qdcnn.models.preprocess import crop_resize
+    from qdcnn.models.trainer import FrameSamples
+
+    n = len(views[0].labels)
+    windows = context_windows(n, context)
+    pool = torch.cat([crop_resize(v.images, spec) for v in views])
+    all_windows = np.concatenate([windows + i * n for i in range(len(views))])
+    labels = np.concatenate([v.labels for v in views])
+    extra = FrameSamples(pool, torch.from_numpy(all_windows), torch.from_numpy(labels))
+    return extra, np.tile(np.arange(n, dtype=np.int64), len(views))
 
 
 def inference_fps(
-    arch: Arch = "pilotnet",
+    arch: str = "pilotnet",
     *,
     n: int = 256,
     size: tuple[int, int] = (160, 320),
@@ -829,12 +722,14 @@ def inference_fps(
     >>> inference_fps("pilotnet", n=8, size=(80, 160)) > 0  # doctest: +SKIP
     True
     """
-    _check_int("n", n, 1, 10**7)
-    if clock not in ("wall", "cpu"):
-        raise ParameterError("clock", clock, "'wall' or 'cpu'")
+    from qdcnn.models.networks import build_network
+
+    check_int("n", n, 1, 10**7)
+    check_choice("clock", clock, ("wall", "cpu"))
     if len(size) != 2 or min(size) < 1:
         raise ParameterError("size", size, "(height, width) with positive integers")
-    clf = CNNDirectionClassifier(
+    clf = CNNDirectionClassifier.from_network(
+        build_network(arch, seed=seed),
         arch,
         batch_size=batch_size,
         device="cpu",
@@ -842,7 +737,7 @@ def inference_fps(
         seed=seed,
         progress=False,
         tta=tta,
-    )._init_untrained()
+    )
     timer = time.perf_counter if clock == "wall" else time.process_time
     frames = np.random.default_rng(seed).integers(0, 256, (n, *size, 3), dtype=np.uint8)
     clf.predict(frames[: min(n, batch_size)])

@@ -1,13 +1,16 @@
 """Reading and checking local ``state_dict`` weight files, with one-line errors.
 
 Nothing is ever downloaded: weights come from a file the user names, for example
-torchvision's ImageNet ResNet-50 file saved elsewhere. Files are read with
-``torch.load(weights_only=True)``, so a file cannot run code when loaded.
+torchvision's ImageNet ResNet-50 file saved elsewhere. A file is either a
+safetensors file (recognised by its header, whatever its name) or a PyTorch file
+read with ``torch.load(weights_only=True)``; neither can run code when loaded.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import struct
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -18,6 +21,8 @@ require("torch", "loading CNN weights")
 import torch  # noqa: E402
 from torch import nn  # noqa: E402
 
+# safetensors itself refuses headers over 100 MB
+_MAX_SAFETENSORS_HEADER = 100_000_000
 # BatchNorm's step counter: absent from older torchvision files and irrelevant to inference.
 OPTIONAL_SUFFIXES: tuple[str, ...] = (".num_batches_tracked",)
 
@@ -31,12 +36,7 @@ def read_weights_file(path: str | os.PathLike[str]) -> object:
         The file is missing, a directory, corrupt, or holds pickled Python objects.
     """
     p = Path(path)
-    if not p.exists():
-        raise InputError(p, "file not found")
-    if p.is_dir():
-        raise InputError(p, "is a directory, not a weights file")
-    if p.stat().st_size == 0:
-        raise InputError(p, "empty file (0 bytes)")
+    _check_exists(p)
     try:
         return torch.load(p, map_location="cpu", weights_only=True)
     except PermissionError:
@@ -51,6 +51,59 @@ def read_weights_file(path: str | os.PathLike[str]) -> object:
         raise InputError(
             p, "not a readable PyTorch weights file (corrupt, truncated or another format)"
         ) from None
+
+
+def is_safetensors_file(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` starts like a safetensors file: a little-endian header length, then ``{``.
+
+    A truncated safetensors file still counts (it then fails to read with a safetensors
+    message); a missing or unreadable path does not.
+    """
+    try:
+        with open(path, "rb") as fh:
+            start = fh.read(9)
+    except OSError:
+        return False
+    if len(start) < 9:
+        return False
+    (header_len,) = struct.unpack("<Q", start[:8])
+    return start[8:9] == b"{" and header_len < _MAX_SAFETENSORS_HEADER
+
+
+def read_safetensors_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+    """All tensors of a safetensors file, on the CPU.
+
+    Raises
+    ------
+    InputError
+        The file is missing, a directory, empty, or not a readable safetensors file.
+    """
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    p = Path(path)
+    _check_exists(p)
+    try:
+        return dict(load_file(p, device="cpu"))
+    except (SafetensorError, OSError, ValueError, json.JSONDecodeError) as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(p, f"not a readable safetensors file ({reason})") from None
+
+
+def read_state_dict(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+    """The ``state_dict`` in a safetensors or PyTorch weights file (see :func:`as_state_dict`)."""
+    if is_safetensors_file(path):
+        return as_state_dict(read_safetensors_file(path), path)
+    return as_state_dict(read_weights_file(path), path)
+
+
+def _check_exists(p: Path) -> None:
+    if not p.exists():
+        raise InputError(p, "file not found")
+    if p.is_dir():
+        raise InputError(p, "is a directory, not a weights file")
+    if p.stat().st_size == 0:
+        raise InputError(p, "empty file (0 bytes)")
 
 
 def as_state_dict(obj: object, path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
@@ -145,6 +198,30 @@ def check_state_dict(
     return given
 
 
+def inflate_input_channels(
+    state: Mapping[str, torch.Tensor], model: nn.Module
+) -> dict[str, torch.Tensor]:
+    """Fit RGB first-layer kernels to a network that takes K stacked RGB frames.
+
+    A 4-d convolution kernel of shape ``(O, 3, kh, kw)`` in ``state`` whose
+    counterpart in ``model`` has shape ``(O, 3K, kh, kw)`` is tiled K times along
+    its input channels and divided by K, so K identical frames give the pretrained
+    layer's output (the usual "inflation" of image weights to frame stacks). Every
+    other entry is returned unchanged.
+    """
+    expected = model.state_dict()
+    out = dict(state)
+    for key, value in state.items():
+        target = expected.get(key)
+        if target is None or value.ndim != 4 or target.ndim != 4 or value.shape[1] != 3:
+            continue
+        k, rest = divmod(int(target.shape[1]), 3)
+        same_other = value.shape[0] == target.shape[0] and value.shape[2:] == target.shape[2:]
+        if k > 1 and rest == 0 and same_other:
+            out[key] = value.repeat(1, k, 1, 1) / k
+    return out
+
+
 def load_weights(
     model: nn.Module,
     path: str | os.PathLike[str],
@@ -155,7 +232,8 @@ def load_weights(
     """Read a local weights file, check it against ``model`` and copy it in place.
 
     Keys under ``skip_prefixes`` keep the model's own values (for example a new
-    3-class ``fc`` head on an ImageNet backbone).
+    3-class ``fc`` head on an ImageNet backbone). RGB first-layer kernels are
+    inflated to a model that takes stacked frames (:func:`inflate_input_channels`).
 
     Examples
     --------
@@ -166,6 +244,6 @@ def load_weights(
     ...
     qdcnn.errors.InputError: missing.pth: file not found
     """
-    state = as_state_dict(read_weights_file(path), path)
+    state = inflate_input_channels(read_state_dict(path), model)
     checked = check_state_dict(state, model, path, name=name, skip_prefixes=skip_prefixes)
     model.load_state_dict(checked, strict=False)

@@ -1,0 +1,46 @@
+"""What each network expects of its input frames, without importing torch.
+
+:class:`InputSpec` names the rows kept, the network input size and the colour
+scaling; :mod:`qdcnn.models.preprocess` applies it (and re-exports these names),
+:mod:`qdcnn.models.networks` pairs one with every registered network.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+# Rows 60..135 of a 160-row Udacity frame: drop the sky above and the car hood below.
+ROAD_CROP: tuple[float, float] = (60 / 160, 135 / 160)
+IMAGENET_MEAN: tuple[float, float, float] = (0.485, 0.456, 0.406)
+IMAGENET_STD: tuple[float, float, float] = (0.229, 0.224, 0.225)
+COLOURS: tuple[str, str] = ("yuv", "imagenet")
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """What a network expects: the rows kept, the input size and the colour scaling.
+
+    Attributes
+    ----------
+    crop : (float, float)
+        First and end row kept, as fractions of the frame height (full width is kept).
+    height, width : int
+        Network input size after resizing the crop.
+    colour : {"yuv", "imagenet"}
+        ``"yuv"``: BT.601 YUV scaled to about [-1, 1] (PilotNet's fixed normalisation
+        layer). ``"imagenet"``: RGB in [0, 1] standardised with ImageNet mean and std.
+    """
+
+    crop: tuple[float, float]
+    height: int
+    width: int
+    colour: Literal["yuv", "imagenet"]
+
+
+# Bojarski et al. 2016 (arXiv:1604.07316), Fig. 4: 66x200 YUV planes.
+PILOTNET_INPUT = InputSpec(crop=ROAD_CROP, height=66, width=200, colour="yuv")
+# He et al. 2016 / torchvision: 224x224 ImageNet-normalised RGB. The road crop of a 320x160
+# frame (320x75) is stretched vertically to a square, as in the usual transfer-learning
+# recipes, so the pretrained receptive fields see a 224-pixel-high road.
+RESNET50_INPUT = InputSpec(crop=ROAD_CROP, height=224, width=224, colour="imagenet")

@@ -1,0 +1,259 @@
+"""CNN model files (JSON header + safetensors): round trips, and one-line errors for bad files."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import re
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("safetensors")
+
+from qdcnn.errors import InputError  # noqa: E402
+from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.networks import build_network  # noqa: E402
+from qdcnn.models.persistence import (  # noqa: E402
+    MODEL_FORMAT_VERSION,
+    MODEL_KIND,
+    load_checkpoint,
+    save_checkpoint,
+)
+from qdcnn.persistence import load_model, save_model  # noqa: E402
+
+FRAMES = np.random.default_rng(0).integers(0, 256, (7, 40, 80, 3), dtype=np.uint8)
+
+
+def untrained(context: int = 1, **params: Any) -> CNNDirectionClassifier:
+    network = build_network("pilotnet", 3 * context, seed=1)
+    return CNNDirectionClassifier.from_network(
+        network, "pilotnet", device="cpu", num_threads=1, context=context, **params
+    )
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("files") / "pilotnet.safetensors"
+    untrained().save(path)
+    return path
+
+
+def load_error(path: Path) -> str:
+    with pytest.raises(InputError) as err:
+        CNNDirectionClassifier.load(path)
+    message = str(err.value)
+    assert "\n" not in message
+    return message
+
+
+def rewrite(
+    source: Path, target: Path, *, meta: dict[str, Any] | None = None, arrays: Any = None
+) -> Path:
+    """``source`` with its header meta updated by ``meta`` and/or other arrays."""
+    header, stored = load_model(source, MODEL_KIND, {MODEL_FORMAT_VERSION})
+    new_meta = {**header.meta, **(meta or {})}
+    save_model(
+        target, MODEL_KIND, MODEL_FORMAT_VERSION, new_meta, stored if arrays is None else arrays
+    )
+    return target
+
+
+def test_round_trip_gives_identical_predictions(tmp_path: Path) -> None:
+    clf = untrained(context=2, tta=True)
+    path = clf.save(tmp_path / "ctx2.safetensors")
+    loaded = CNNDirectionClassifier.load(path)
+    np.testing.assert_array_equal(loaded.predict_proba(FRAMES), clf.predict_proba(FRAMES))
+    assert loaded.get_params() == clf.get_params()
+    assert loaded.input_spec_ == clf.input_spec_ and loaded.context_ == 2
+    header, arrays = load_model(path, MODEL_KIND, {2})
+    assert header.meta["architecture"] == "pilotnet"
+    assert header.meta["class_names"] == ["left", "straight", "right"]
+    assert header.meta["input_spec"] == {
+        "crop": [0.375, 0.84375],
+        "height": 66,
+        "width": 200,
+        "colour": "yuv",
+    }
+    assert header.meta["in_channels"] == 6
+    state = clf.model_.state_dict()
+    assert set(arrays) == set(state)
+    assert all(np.array_equal(arrays[k], v.numpy()) for k, v in state.items())
+
+
+def test_load_keeps_the_saved_input_spec(saved: Path, tmp_path: Path) -> None:
+    spec = {"crop": [0.25, 0.75], "height": 66, "width": 200, "colour": "yuv"}
+    path = rewrite(saved, tmp_path / "spec.safetensors", meta={"input_spec": spec})
+    assert CNNDirectionClassifier.load(path).input_spec_.crop == (0.25, 0.75)
+
+
+def test_corrupt_and_truncated_files(saved: Path, tmp_path: Path) -> None:
+    noise = tmp_path / "noise.safetensors"
+    noise.write_bytes(b"qdcnn" + np.random.default_rng(0).bytes(4096))
+    assert re.fullmatch(
+        re.escape(f"{noise}: not a readable qdcnn model file (") + r".+\)", load_error(noise)
+    )
+    cut = tmp_path / "cut.safetensors"
+    cut.write_bytes(saved.read_bytes()[: saved.stat().st_size // 2])
+    assert re.fullmatch(
+        re.escape(f"{cut}: not a readable qdcnn model file (") + r".*not fully covered\)",
+        load_error(cut),
+    )
+    empty = tmp_path / "empty.safetensors"
+    empty.touch()
+    assert load_error(empty) == f"{empty}: empty file (0 bytes)"
+
+
+def test_old_torch_and_pickle_files_are_refused_unread(tmp_path: Path) -> None:
+    refusal = (
+        "a pickle-based file (an older qdcnn model or a torch file); it is never loaded "
+        "because unpickling can run code: retrain the model with this qdcnn version"
+    )
+    old = tmp_path / "old.pt"
+    torch.save({"format": "qdcnn-cnn-direction-classifier/1", "state_dict": {}}, old)
+    assert load_error(old) == f"{old}: {refusal}"
+    raw = tmp_path / "raw.pkl"
+    raw.write_bytes(pickle.dumps({"state_dict": {}}))
+    assert load_error(raw) == f"{raw}: {refusal}"
+
+
+def test_weights_of_another_architecture(saved: Path, tmp_path: Path) -> None:
+    resnet = {k: v.numpy() for k, v in build_network("resnet50", seed=0).state_dict().items()}
+    path = rewrite(saved, tmp_path / "resnet-arrays.safetensors", arrays=resnet)
+    assert load_error(path) == (
+        f"{path}: not a qdcnn pilotnet state_dict: missing 18 keys such as features.0.weight; "
+        "unexpected 320 keys such as bn1.bias"
+    )
+
+
+def test_headers_that_lie(saved: Path, tmp_path: Path) -> None:
+    # the qdcnn header claims two stacked frames; the arrays are a one-frame network
+    path = rewrite(
+        saved,
+        tmp_path / "context.safetensors",
+        meta={"params": {**_params(saved), "context": 2}, "in_channels": 6, "context": 2},
+    )
+    assert load_error(path) == (
+        f"{path}: not a qdcnn pilotnet state_dict: 1 tensor with the wrong shape, "
+        "such as features.0.weight (24, 3, 5, 5) instead of (24, 6, 5, 5)"
+    )
+    path = rewrite(saved, tmp_path / "channels.safetensors", meta={"in_channels": 9})
+    assert load_error(path) == f"{path}: header in_channels 9 but context 1 (3 per frame)"
+    path = rewrite(saved, tmp_path / "arch.safetensors", meta={"architecture": "vgg"})
+    assert load_error(path) == (
+        f"{path}: architecture 'vgg' is not a known network ('pilotnet', 'resnet50')"
+    )
+    path = rewrite(saved, tmp_path / "params.safetensors", meta={"architecture": "resnet50"})
+    assert (
+        load_error(path) == f"{path}: header architecture 'resnet50' but settings arch 'pilotnet'"
+    )
+    path = rewrite(
+        saved, tmp_path / "bad.safetensors", meta={"params": {**_params(saved), "epochs": 0}}
+    )
+    assert load_error(path) == (
+        f"{path}: saved settings are invalid: epochs=0 is invalid: an integer in [1, 100000]"
+    )
+    path = rewrite(saved, tmp_path / "classes.safetensors", meta={"class_names": ["a", "b"]})
+    assert load_error(path) == (
+        f"{path}: class names ['a', 'b'] are not ['left', 'straight', 'right']"
+    )
+    path = rewrite(saved, tmp_path / "best.safetensors", meta={"best_epoch": 3})
+    assert load_error(path) == f"{path}: header best_epoch 3 is not an epoch of its history"
+
+
+def test_safetensors_header_that_lies_about_a_shape(saved: Path, tmp_path: Path) -> None:
+    data = saved.read_bytes()
+    (n,) = struct.unpack("<Q", data[:8])
+
+    def with_shape(shape: list[int], name: str) -> Path:
+        header = json.loads(data[8 : 8 + n])
+        header["features.0.weight"]["shape"] = shape
+        text = json.dumps(header, separators=(",", ":")).encode()
+        path = tmp_path / name
+        path.write_bytes(data[:8] + text.ljust(n) + data[8 + n :])
+        return path
+
+    fewer = with_shape([24, 3, 5, 4], "fewer.safetensors")  # does not cover its bytes
+    assert re.fullmatch(
+        re.escape(f"{fewer}: not a readable qdcnn model file (") + r".*offset.*\)",
+        load_error(fewer),
+    )
+    permuted = with_shape([5, 24, 3, 5], "permuted.safetensors")  # same bytes, wrong layout
+    assert load_error(permuted) == (
+        f"{permuted}: not a qdcnn pilotnet state_dict: 1 tensor with the wrong shape, "
+        "such as features.0.weight (5, 24, 3, 5) instead of (24, 3, 5, 5)"
+    )
+
+
+def test_non_finite_and_mistyped_weights(saved: Path, tmp_path: Path) -> None:
+    _, arrays = load_model(saved, MODEL_KIND, {2})
+    nan = dict(arrays)
+    nan["classifier.2.bias"] = np.full_like(arrays["classifier.2.bias"], np.nan)
+    path = rewrite(saved, tmp_path / "nan.safetensors", arrays=nan)
+    assert (
+        load_error(path) == f"{path}: weights contain NaN or infinite values (in classifier.2.bias)"
+    )
+    half = {k: v.astype(np.float16) for k, v in arrays.items()}
+    path = rewrite(saved, tmp_path / "half.safetensors", arrays=half)
+    assert load_error(path) == (
+        f"{path}: array classifier.2.bias is torch.float16, the network expects torch.float32"
+    )
+
+
+def test_a_checkpoint_restores_the_optimiser_and_scheduler(tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    network = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.ReLU(), torch.nn.Linear(8, 3))
+    optimiser = torch.optim.AdamW(network.parameters(), lr=0.01, betas=(0.8, 0.99))
+    scheduler = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, T_max=10)
+    for _ in range(3):
+        loss = network(torch.randn(5, 4)).logsumexp(1).mean()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        scheduler.step()
+    path = save_checkpoint(
+        tmp_path / "last.safetensors", network, optimiser, {"epoch": 3}, scheduler
+    )
+    twin = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.ReLU(), torch.nn.Linear(8, 3))
+    twin_opt = torch.optim.AdamW(twin.parameters(), lr=0.5)
+    twin_sched = torch.optim.lr_scheduler.CosineAnnealingLR(twin_opt, T_max=99)
+    meta = load_checkpoint(path, twin, twin_opt, twin_sched)
+    assert meta["epoch"] == 3
+    assert all(
+        torch.equal(a, b) for a, b in zip(network.parameters(), twin.parameters(), strict=True)
+    )
+    saved, restored = optimiser.state_dict(), twin_opt.state_dict()
+    assert restored["param_groups"] == saved["param_groups"]
+    for index, entry in saved["state"].items():
+        assert all(torch.equal(v, restored["state"][index][k]) for k, v in entry.items())
+    assert twin_sched.state_dict() == scheduler.state_dict()
+    # the next step of the restored pair is the next step of the original
+    x = torch.randn(5, 4)
+    for net, opt in ((network, optimiser), (twin, twin_opt)):
+        opt.zero_grad()
+        net(x).logsumexp(1).mean().backward()
+        opt.step()
+    assert all(
+        torch.equal(a, b) for a, b in zip(network.parameters(), twin.parameters(), strict=True)
+    )
+    sgd = torch.optim.SGD(twin.parameters(), lr=0.1)
+    with pytest.raises(InputError) as err:
+        load_checkpoint(path, twin, sgd)
+    assert str(err.value) == f"{path}: optimiser state of 'AdamW', not 'SGD'"
+
+
+def _params(path: Path) -> dict[str, Any]:
+    header, _ = load_model(path, MODEL_KIND, {MODEL_FORMAT_VERSION})
+    return dict(header.meta["params"])
+
+
+def test_non_finite_history_values_are_stored_as_null(tmp_path: Path) -> None:
+    clf = untrained()
+    clf.history_ = [{"epoch": 1, "train_loss": float("nan"), "val_loss": float("inf")}]
+    clf.best_epoch_ = 1
+    loaded = CNNDirectionClassifier.load(clf.save(tmp_path / "nan.safetensors"))
+    assert loaded.history_ == [{"epoch": 1, "train_loss": None, "val_loss": None}]

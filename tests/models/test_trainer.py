@@ -1,0 +1,203 @@
+"""Trainer: trains any (B, C, H, W) -> (B, 3) module; extras train only; context; determinism."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from torch import nn  # noqa: E402
+
+from qdcnn.errors import InputError, ParameterError  # noqa: E402
+from qdcnn.models.samples import split_train_val  # noqa: E402
+from qdcnn.models.trainer import FrameSamples, Trainer, TrainSettings  # noqa: E402
+
+
+def bar_frames(n: int, rng: np.random.Generator, h: int = 16, w: int = 32) -> tuple[Any, Any]:
+    """Noisy dark frames with a bright bar in the left (label 0) or right (label 2) third.
+
+    A mirrored frame is a frame of the other class, as the flip augmentation assumes.
+    """
+    labels = np.where(np.arange(n) % 2 == 0, 0, 2)
+    frames = rng.integers(0, 60, (n, 3, h, w)).astype(np.uint8)
+    for i, label in enumerate(labels):
+        x = int(rng.integers(1, w // 3 - 3)) if label == 0 else int(rng.integers(2 * w // 3, w - 4))
+        frames[i, :, :, x : x + 3] = 230
+    return torch.from_numpy(frames), labels
+
+
+class TinyCNN(nn.Module):
+    """Two convolutions and a linear head on 16x32 frames."""
+
+    def __init__(self, in_channels: int = 3) -> None:
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Conv2d(in_channels, 8, 3, stride=2, padding=1),
+            nn.ReLU(),
+            nn.Conv2d(8, 8, 3, stride=2, padding=1),
+            nn.ReLU(),
+            nn.Flatten(),
+            nn.Dropout(0.2),
+            nn.Linear(8 * 4 * 8, 3),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out: torch.Tensor = self.body(x)
+        return out
+
+
+def tiny(seed: int = 0) -> TinyCNN:
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        return TinyCNN()
+
+
+def scaled(x: torch.Tensor) -> torch.Tensor:
+    return x.float() / 255.0
+
+
+def settings(**kw: Any) -> TrainSettings:
+    base: dict[str, Any] = {"epochs": 6, "batch_size": 16, "lr": 3e-3, "num_threads": 1}
+    return TrainSettings(**{**base, **kw})
+
+
+def test_trains_a_custom_network_to_high_accuracy() -> None:
+    frames, labels = bar_frames(120, np.random.default_rng(0))
+    result = Trainer(settings(epochs=15, patience=0), transform=scaled).fit(
+        tiny(), FrameSamples.sequence(frames, labels)
+    )
+    test_frames, test_labels = bar_frames(60, np.random.default_rng(1))
+    with torch.inference_mode():
+        predicted = result.network(scaled(test_frames)).argmax(1).numpy()
+    assert np.mean(predicted == test_labels) >= 0.95
+    assert not result.network.training
+    losses = [h["train_loss"] for h in result.history]
+    assert losses[-1] < 0.5 * losses[0]
+    assert set(result.history[0]) == {
+        "epoch",
+        "train_loss",
+        "val_loss",
+        "val_accuracy",
+        "lr",
+        "seconds",
+    }
+    assert (result.n_train, result.n_val, result.n_extra) == (
+        len(split_train_val(120, 0.15, blocks=4, gap=5)[0]),
+        18,
+        0,
+    )
+
+
+def test_same_seed_same_weights_other_seed_other_weights() -> None:
+    frames, labels = bar_frames(48, np.random.default_rng(2))
+    samples = FrameSamples.sequence(frames, labels)
+
+    def run(seed: int) -> dict[str, torch.Tensor]:
+        net = Trainer(settings(epochs=2, seed=seed), transform=scaled).fit(tiny(), samples).network
+        return net.state_dict()
+
+    a, b, c = run(3), run(3), run(4)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not all(torch.equal(a[k], c[k]) for k in a)
+
+
+class Recorder(nn.Module):
+    """Records the first pixel of every channel it is fed, in training and in eval mode."""
+
+    def __init__(self, in_channels: int) -> None:
+        super().__init__()
+        self.linear = nn.Linear(in_channels, 3)
+        self.seen: list[tuple[bool, np.ndarray]] = []
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        self.seen.append((self.training, x[:, :, 0, 0].detach().numpy().astype(np.int64)))
+        out: torch.Tensor = self.linear(x.mean((2, 3)) / 255.0)
+        return out
+
+    def rows(self, training: bool) -> np.ndarray:
+        return np.concatenate([rows for mode, rows in self.seen if mode == training])
+
+
+def tagged(n: int, view: int) -> torch.Tensor:
+    """Constant frames whose channel 0 is the frame index and channel 1 the view."""
+    frames = torch.zeros((n, 3, 2, 2), dtype=torch.uint8)
+    frames[:, 0] = torch.arange(n, dtype=torch.uint8).view(n, 1, 1)
+    frames[:, 1] = view
+    return frames
+
+
+def test_extra_samples_train_only_with_their_own_frame() -> None:
+    n = 40
+    labels = np.arange(n) % 3
+    main = FrameSamples.sequence(tagged(n, 0), labels)
+    extra_pool = torch.cat([tagged(n, 1), tagged(n, 2)])
+    windows = torch.cat([torch.arange(n), torch.arange(n) + n]).view(-1, 1)
+    extra = FrameSamples(extra_pool, windows, torch.from_numpy(np.tile((labels + 1) % 3, 2)))
+    recorder = Recorder(3)
+    cfg = settings(epochs=2, augment=False, val_fraction=0.25, val_blocks=1, val_gap=2)
+    result = Trainer(cfg).fit(recorder, main, extra=extra, extra_of=np.tile(np.arange(n), 2))
+    train, val = split_train_val(n, 0.25, blocks=1, gap=2)
+    assert val.tolist() == list(range(30, 40)) and train.tolist() == list(range(28))
+    seen_train = recorder.rows(True)[:, :2]
+    expected = sorted((int(i), v) for i in train for v in (0, 1, 2))
+    assert sorted(map(tuple, seen_train.tolist())) == sorted(expected * 2)  # each once per epoch
+    seen_val = recorder.rows(False)[:, :2]
+    assert sorted(map(tuple, seen_val.tolist())) == sorted([(int(i), 0) for i in val] * 2)
+    assert result.n_extra == 2 * len(train)
+
+
+def test_context_stacks_the_frames_before_each_frame() -> None:
+    n, k = 30, 3
+    main = FrameSamples.sequence(tagged(n, 0), np.arange(n) % 3, context=k)
+    extra = FrameSamples.sequence(tagged(n, 1), np.arange(n) % 3, context=k)
+    recorder = Recorder(3 * k)
+    cfg = settings(epochs=1, augment=False, val_fraction=0.2, val_blocks=1, val_gap=0)
+    Trainer(cfg).fit(recorder, main, extra=extra, extra_of=np.arange(n))
+    rows = np.concatenate([recorder.rows(True), recorder.rows(False)])
+    for row in rows:
+        ids, views = row[0::3], row[1::3]  # channel 0 and 1 of each of the K frames
+        newest = ids[-1]
+        assert ids.tolist() == [max(newest - 2, 0), max(newest - 1, 0), newest]
+        assert len(set(views.tolist())) == 1  # a sample never mixes views
+    assert len(rows) == n + n - 6  # extras of the 6 validation frames never ran
+
+
+def test_callbacks_report_every_step_and_epoch() -> None:
+    frames, labels = bar_frames(40, np.random.default_rng(3))
+    steps: list[tuple[int, int]] = []
+    epochs: list[tuple[Mapping[str, Any], int]] = []
+    result = Trainer(
+        settings(epochs=3, val_fraction=0.0),
+        transform=scaled,
+        on_step=lambda step, total: steps.append((step, total)),
+        on_epoch=lambda record, n: epochs.append((record, n)),
+    ).fit(tiny(), FrameSamples.sequence(frames, labels))
+    assert steps == [(i, 9) for i in range(1, 10)]  # 40 frames: batches of 16, 16, 8
+    assert [(dict(r), n) for r, n in epochs] == [(h, 3) for h in result.history]
+    assert result.best_epoch == 3  # without validation the last epoch is kept
+    assert result.history[-1]["lr"] == pytest.approx(0.0, abs=1e-12)  # cosine, per step
+
+
+def test_bad_extras_and_settings() -> None:
+    frames, labels = bar_frames(20, np.random.default_rng(4))
+    samples = FrameSamples.sequence(frames, labels)
+    trainer = Trainer(settings(epochs=1))
+    with pytest.raises(ParameterError) as err:
+        trainer.fit(tiny(), samples, extra=samples)
+    assert str(err.value) == "extra_of=None is invalid: the sample index of every extra sample"
+    with pytest.raises(InputError) as err:
+        trainer.fit(tiny(), samples, extra=samples, extra_of=np.arange(5))
+    assert str(err.value) == "extra_of: expected 20 indices into 20 samples, got shape (5,)"
+    with pytest.raises(ParameterError) as err:
+        Trainer(settings(epochs=0)).fit(tiny(), samples)
+    assert str(err.value) == "epochs=0 is invalid: an integer in [1, 100000]"
+    with pytest.raises(ParameterError) as err:
+        Trainer(settings(batch_size=1), min_batch_size=2).fit(tiny(), samples)
+    assert str(err.value) == "batch_size=1 is invalid: an integer in [2, 65536]"
+    with pytest.raises(InputError) as err:
+        FrameSamples.sequence(frames, np.full(20, 3))
+    assert str(err.value) == "labels: values must be 0 (left), 1 (straight) or 2 (right)"
