@@ -110,7 +110,7 @@ def save_model(
     from safetensors.numpy import save
 
     header = ModelHeader(kind, int(format_version), __version__, dict(meta))
-    tensors = {name: np.ascontiguousarray(a) for name, a in arrays.items()}
+    tensors = {name: np.ascontiguousarray(a).reshape(np.shape(a)) for name, a in arrays.items()}
     data = save(tensors, metadata={METADATA_KEY: header.to_json()})
     return atomic_write_bytes(path, data)
 

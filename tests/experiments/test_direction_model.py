@@ -86,3 +86,19 @@ def test_damaged_headers_are_named(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="holds a 'qdcnn-shadow-model'"):
         save_model(tmp_path / "f.safetensors", "qdcnn-shadow-model", 1, {}, {})
         DirectionModel.load(tmp_path / "f.safetensors")
+
+
+def test_a_cnn_direction_model_round_trips(tmp_path: Path) -> None:
+    pytest.importorskip("torch")
+    from qdcnn.experiments.methods import TrainingOptions
+
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 255, (24, 40, 80, 3), dtype=np.uint8)
+    y = np.repeat([0, 1, 2], 8)
+    options = TrainingOptions(epochs=1, threads=1, params={"val_fraction": 0.0, "batch_size": 8})
+    model = train_direction_model(
+        "dnn-pilotnet", images, y, PipelineConfig(), "toy", inner_folds=0, options=options
+    )
+    back = DirectionModel.load(model.save(tmp_path / "cnn.safetensors"))
+    np.testing.assert_allclose(back.predict_proba(images), model.predict_proba(images), atol=1e-6)
+    assert back.estimator.history_ == model.estimator.history_

@@ -569,6 +569,35 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         }
         return save_network(path, self.model_, meta)
 
+    def fitted_state(self) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+        """Header fields and weight arrays for a direction model file (:mod:`qdcnn.persistence`)."""
+        check_is_fitted(self, "model_")
+        from qdcnn.models.persistence import json_safe, state_arrays
+
+        meta = {
+            **self._meta(self.input_spec_, self.context_),
+            "history": json_safe(self.history_),
+            "best_epoch": self.best_epoch_,
+        }
+        return meta, state_arrays(self.model_)
+
+    def load_fitted_state(
+        self, meta: dict[str, Any], arrays: dict[str, NDArray[Any]], source: str | os.PathLike[str]
+    ) -> None:
+        """Rebuild the network from :meth:`fitted_state`'s output (names and shapes checked)."""
+        _torch("loading a CNN direction classifier")
+        from qdcnn.models.networks import build_network
+        from qdcnn.models.persistence import load_state_arrays, spec_from_meta
+
+        if not isinstance(meta, dict) or meta.get("architecture") != self.arch:
+            raise InputError(source, f"the weights are not those of a {self.arch!r} network")
+        self._checked()
+        spec = spec_from_meta(meta.get("input_spec"), source)
+        network = build_network(self.arch, 3 * int(self.context), seed=0, **self._network_kw())
+        load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
+        history, best_epoch = _history_from_meta(meta, source)
+        self._set_fitted(network, spec, history, best_epoch)
+
     @classmethod
     def load(
         cls, path: str | os.PathLike[str], *, device: str | None = None
