@@ -363,3 +363,51 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     assert "note: skipping dnn-resnet50: no GPU" in res.stderr
     methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
     assert methods[-1] == "dnn-pilotnet" and "dnn-resnet50" not in methods
+
+
+def test_score_shadows_lists_ground_truth_without_a_prediction(tmp_path: Path) -> None:
+    pred, gt = tmp_path / "pred", tmp_path / "gt"
+    truth = np.zeros((20, 30), bool)
+    truth[5:15, 5:15] = True
+    for stem in ("a", "b", "c"):
+        write_mask(gt / f"{stem}.png", truth)
+    write_mask(pred / "a_mask.png", truth)
+    res = runner.invoke(app, ["score-shadows", "--pred", str(pred), "--gt", str(gt), "--json"])
+    assert res.exit_code == 1
+    obj = json_lines(res.stdout)[0]
+    assert obj["n"] == 1
+    assert [Path(f["file"]).name for f in obj["failures"]] == ["b.png", "c.png"]
+    assert "no prediction b_mask.png" in obj["failures"][0]["error"]
+
+
+@pytest.mark.parametrize("command", ["detect-shadows", "detect-lanes"])
+def test_an_empty_folder_and_an_out_that_is_a_file_are_one_line_errors(
+    command: str, tmp_path: Path
+) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = runner.invoke(app, [command, str(empty), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and f"{empty}: no image files found" in res.stderr
+    write_image(tmp_path / "a.png", road())
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    res = runner.invoke(app, [command, str(tmp_path / "a.png"), "--out", str(blocker)])
+    assert res.exit_code == 2
+    assert f"{blocker}: exists and is not a folder" in res.stderr
+    assert len(res.stderr.strip().splitlines()) <= 2  # a note on the default model may precede
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["bench", "shadows", "--frames", "0"], "frames=0 is invalid"),
+        (["bench", "pipeline", "--frames", "0"], "frames=0 is invalid"),
+        (["synth", "--out", "x", "--seed", "-1"], "seed=-1 is invalid"),
+        (["evaluate", "--data", "synthetic:track1:40", "--gap", "-1"], "gap=-1 is invalid"),
+        (["detect-lanes", ".", "--out", "x", "--seed", "-1"], "seed=-1 is invalid"),
+    ],
+)
+def test_simple_mistakes_are_one_line_errors_not_tracebacks(args: list[str], message: str) -> None:
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert message in res.stderr and "Traceback" not in res.stderr

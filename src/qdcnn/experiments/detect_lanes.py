@@ -130,6 +130,10 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
         report.note(f"no --model: training {spec.method} on {DEFAULT_TRAINING_DATA}")
         model = default_direction_model(spec.method, spec.seed)
     listing = list_images(spec.paths)
+    if not listing.images and not listing.missing:
+        raise InputError(", ".join(map(str, spec.paths)), "no image files found")
+    if spec.out.exists() and not spec.out.is_dir():
+        raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
     result = DetectLanesResult(model, spec.out, skipped=listing.skipped)
     for problem in listing.missing:
         result.failures.append(Failure(problem.source, str(problem)))

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from qdcnn._optional import has_torch
+from qdcnn._validation import check_int
 from qdcnn.data.frames import load_frameset
 from qdcnn.experiments.direction_model import default_config, train_direction_model
 from qdcnn.experiments.features import compute_features
@@ -52,6 +53,7 @@ def bench_pipeline(
     say: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Frames per second of ``process_frame`` + classifier decision for each method (measured)."""
+    check_int("frames", frames, 1, 100_000)
     log = say or (lambda _m: None)
     core = pin_to_one_core() if one_core else None
     cfg = replace(default_config(), seed=seed)

@@ -117,8 +117,9 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
     """Score ``<stem>_mask.png`` predictions against ``<stem>.<ext>`` ground-truth masks.
 
     BER, shadow and non-shadow errors are computed on counts summed over all
-    matched pairs. A prediction without ground truth, an unreadable mask or a
-    size mismatch is a failure; the other pairs are still scored.
+    matched pairs. A prediction without ground truth, a ground-truth mask without a
+    prediction, an unreadable mask or a size mismatch is a failure; the other pairs
+    are still scored.
     """
     for folder, what in ((pred_dir, "prediction"), (gt_dir, "ground-truth")):
         if not folder.is_dir():
@@ -136,7 +137,12 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
         return confusion_counts(read_mask(pred), read_mask(gt), source=str(pred))
 
     counts: list[ConfusionCounts] = []
-    failures: list[Failure] = []
+    predicted = {p.stem[: -len("_mask")] for p in preds}
+    failures = [
+        Failure(str(gt), f"{gt}: no prediction {stem}_mask.png in {pred_dir}")
+        for stem, gt in truth.items()
+        if stem not in predicted
+    ]
     for outcome in run_batch(preds, work):
         if outcome.result is not None:
             counts.append(outcome.result)
@@ -227,6 +233,10 @@ def run_shadow_detection(
     report = reporter or Reporter()
     model = ShadowModel.load(spec.model) if spec.model else None
     plan = plan_detection(spec.paths)
+    if not plan.images and not plan.failures:
+        raise InputError(", ".join(map(str, spec.paths)), "no image files found")
+    if spec.out.exists() and not spec.out.is_dir():
+        raise InputError(spec.out, "exists and is not a folder (--out names a folder for masks)")
     quantum = spec.method in QUANTUM_DETECTORS
     result = ShadowDetectionResult(
         spec.method, spec.out, spec.config.shots if quantum else None, skipped=plan.skipped

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_int
 from qdcnn.config import ShadowConfig
 from qdcnn.experiments.timing import time_per_item
 from qdcnn.quantum.hardware_time import PROFILES, estimate_time
@@ -99,6 +100,9 @@ def bench_shadows(
     aer_blocks : int
         Block circuits timed one by one on Aer (0 skips Aer).
     """
+    check_int("frames", frames, 1, 1000)
+    check_int("repeats", repeats, 1, 1000)
+    check_int("aer_blocks", aer_blocks, 0, 100_000)
     say = progress or (lambda _msg: None)
     rows: list[dict[str, Any]] = []
     for width, height in sizes:
