@@ -1,12 +1,14 @@
 """Time of the full noise grid: 6 channels x 10 strengths x 2 methods on 300 frames' features.
 
 Target (issue 4): at most 10 s on one core. The timed region is
-:func:`qdcnn.experiments.noise_sweep.direction_sweep` with its defaults: 5 contiguous folds
+:func:`qdcnn.experiments.noise.direction_sweep` with its defaults: 5 contiguous folds
 (gap 5), inner 3-fold hyperparameter search, every fold's UU-dagger and VQC model trained
 once without noise, then all test frames classified under each of the 60 (channel, p)
-settings with exact density-matrix probabilities. Lane features are computed (or read from
-the cache) before timing. The process is pinned to one CPU and BLAS/OpenMP are limited to
-one thread.
+settings with exact density-matrix probabilities (the estimators' batched
+``predict_many``). Frames, labels and lane features come from
+:func:`qdcnn.experiments.lane_data.load_lane_data` (computed or read from the cache) before
+timing, exactly as ``run_noise_sweep`` gets them. The process is pinned to one CPU and
+BLAS/OpenMP are limited to one thread.
 
 Usage::
 
@@ -25,10 +27,9 @@ from dataclasses import replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from qdcnn.experiments.datasets import load_frameset
-from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.features import compute_features
-from qdcnn.experiments.noise_sweep import PAPER_STRENGTHS, direction_sweep
+from qdcnn.config import PipelineConfig
+from qdcnn.experiments.lane_data import load_lane_data
+from qdcnn.experiments.noise import PAPER_STRENGTHS, direction_sweep
 from qdcnn.quantum.noise import PAPER_CHANNELS
 
 
@@ -42,12 +43,9 @@ def main() -> None:
 
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    cfg = replace(default_config(), seed=args.seed)
-    frames = load_frameset(args.data, seed=args.seed)
-    table = compute_features(frames, cfg, (args.grouping,))
-    keep = table.readable
-    X = table.features[args.grouping][keep]
-    y = frames.labels(cfg.labels)[keep]
+    cfg = replace(PipelineConfig(), seed=args.seed)
+    lanes = load_lane_data(args.data, cfg, (args.grouping,), seed=args.seed)
+    X, y = lanes.features(args.grouping), lanes.y
 
     times = []
     with threadpool_limits(1):

@@ -20,9 +20,10 @@ qdcnn.errors.ParameterError: folds=True is invalid: an integer in [2, 100]
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from qdcnn.errors import ParameterError
 
@@ -128,3 +129,73 @@ def check_shots(value: object, name: str = "shots", hi: int = 10**9) -> int:
 def check_optional_shots(value: object, name: str = "shots") -> int | None:
     """``None`` (exact probabilities) or :func:`check_shots`."""
     return None if value is None else check_shots(value, name)
+
+
+def check_feature_pairs(
+    X: object,
+    feature_columns: Sequence[int] | None = None,
+    n_features_in: int | None = None,
+    name: str = "X",
+) -> NDArray[np.float64]:
+    """Two feature columns of a table ``X`` as a float array ``(N, 2)`` (NaN kept).
+
+    Parameters
+    ----------
+    X : array_like, shape (N, F)
+        Samples; the two-input classifiers read ``[slope_left, slope_right]``.
+    feature_columns : pair of int or None
+        ``None`` requires ``F == 2``; a pair picks those two columns of a wider ``X``
+        (for example ``(0, 1)`` for the slopes of a feature table with extra columns).
+    n_features_in : int or None
+        Number of columns seen in ``fit``; ``X`` must have as many.
+    name : str
+        Name of ``X`` in error messages.
+
+    Examples
+    --------
+    >>> check_feature_pairs([[1.0, 2.0, 3.0]], (2, 0)).tolist()
+    [[3.0, 1.0]]
+    """
+    try:
+        arr = np.asarray(X, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(name, f"<{type(X).__name__}>", "a numeric array (N, 2)") from None
+    if arr.ndim != 2:
+        raise ParameterError(name, f"<array of shape {arr.shape}>", "a 2-D array (N, F)")
+    f = arr.shape[1]
+    if n_features_in is not None and f != n_features_in:
+        raise ParameterError(name, f"<{f} features>", f"{n_features_in} features, as in fit")
+    if feature_columns is None:
+        if f != 2:
+            raise ParameterError(
+                name,
+                f"<{f} features>",
+                "exactly 2 features [slope_left, slope_right]; "
+                "pass feature_columns=(i, j) to pick two columns of a wider table",
+            )
+        return arr
+    cols = tuple(feature_columns)
+    ok = len(cols) == 2 and all(_is_int(c) and -f <= int(c) < f for c in cols)
+    if not ok or int(cols[0]) % f == int(cols[1]) % f:
+        raise ParameterError("feature_columns", feature_columns, f"two distinct indices of {f}")
+    return arr[:, [int(c) for c in cols]]
+
+
+def check_direction_labels(y: object, n_samples: int, n_classes: int = 3) -> NDArray[np.int64]:
+    """Class labels as ``int64`` indices ``0 .. n_classes - 1`` (directions: 0 left,
+    1 straight, 2 right), one per sample.
+
+    Examples
+    --------
+    >>> check_direction_labels([2, 0, 1], 3).tolist()
+    [2, 0, 1]
+    """
+    arr = np.asarray(y)
+    if arr.ndim != 1 or arr.shape[0] != n_samples:
+        raise ParameterError("y", f"<array of shape {arr.shape}>", f"shape ({n_samples},)")
+    allowed = ", ".join(map(str, range(n_classes - 1))) + f" or {n_classes - 1}"
+    if not np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_:
+        raise ParameterError("y", f"<{arr.dtype} array>", f"class indices {allowed}")
+    if n_samples and not np.all(np.isin(arr, np.arange(n_classes))):
+        raise ParameterError("y", f"<values {np.unique(arr)[:6].tolist()}>", allowed)
+    return arr.astype(np.int64)

@@ -13,18 +13,11 @@ from qdcnn.config import PipelineConfig, ShadowConfig
 from qdcnn.data.labels import LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.evaluate import evaluate_features
-from qdcnn.experiments.noise_plot import (
-    accuracy_figure,
-    save_figure,
-    shadow_figure,
-    shadow_plot_path,
-)
-from qdcnn.experiments.noise_sweep import (
+from qdcnn.experiments.noise import (
     PAPER_STRENGTHS,
     NoiseSweepResult,
     SweepRow,
     direction_sweep,
-    fit_uu_under_noise,
     parse_channels,
     parse_methods,
     parse_strengths,
@@ -33,6 +26,12 @@ from qdcnn.experiments.noise_sweep import (
     shadow_sweep,
     split_train_test,
     synthetic_shadow_set,
+)
+from qdcnn.experiments.noise.plot import (
+    accuracy_figure,
+    save_figure,
+    shadow_figure,
+    shadow_plot_path,
 )
 from qdcnn.quantum.direction import UUDirectionClassifier
 from qdcnn.quantum.noise import CHANNELS, PAPER_CHANNELS, NoiseSpec
@@ -165,28 +164,6 @@ def test_shots_are_seeded(fitted: dict) -> None:
     exact = predict_folds(models, X, noise)
     assert not np.array_equal(a, exact)  # 32 shots move some frames across the rule's bands
     assert np.mean(a == exact) > 0.5
-
-
-# ---------------------------------------------------------------- training under noise
-
-
-def test_noisy_uu_search_matches_the_classifier_without_noise(fitted: dict) -> None:
-    X, y = fitted["X"], fitted["y"]
-    est = UUDirectionClassifier(shots=None, n_centroids=120, n_margins=51, refine=False)
-    plain = est.fit(X, y)
-    same = fit_uu_under_noise(est, X, y, NoiseSpec("bit-flip", 0.0))
-    assert same.centroid_ == pytest.approx(plain.centroid_, abs=1e-12)
-    assert same.margin_ == pytest.approx(plain.margin_, abs=1e-12)
-    # under noise the search can only do better on the training data than the noiseless
-    # choice, which lies on the same grid
-    for noise in (NoiseSpec("bit-flip", 0.4), NoiseSpec("amplitude-damping", 0.6)):
-        noisy = fit_uu_under_noise(est, X, y, noise)
-        acc_noisy = np.mean(noisy.predict(X, noise=noise) == y)
-        acc_plain = np.mean(plain.predict(X, noise=noise) == y)
-        assert acc_noisy >= acc_plain
-    # bit flip at p=0.4 shrinks |P1 - P2| by 0.2**2 = 0.04, so the margin must shrink
-    noisy = fit_uu_under_noise(est, X, y, NoiseSpec("bit-flip", 0.4))
-    assert noisy.margin_ < plain.margin_
 
 
 # ---------------------------------------------------------------- direction sweep

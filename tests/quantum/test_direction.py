@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from sklearn.base import clone
@@ -10,8 +12,8 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from qdcnn._optional import has_module
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.direction import UUDirectionClassifier, rule, soft_scores
-from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.direction import UUDirectionClassifier, grid_search, rule, soft_scores
+from qdcnn.quantum.noise import CHANNELS, NoiseSpec
 
 
 def road_slopes(
@@ -229,3 +231,140 @@ def test_sklearn_compatibility(rng: np.random.Generator) -> None:
     scores = cross_val_score(clf, X, y, cv=KFold(3, shuffle=False))
     assert scores.shape == (3,) and scores.min() >= 0.85
     assert clf.__sklearn_tags__().input_tags.allow_nan
+
+
+# ---------------------------------------------------------------- training and batches under noise
+
+
+def drive_slopes(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Road slopes in runs of 10 frames (like a drive), a few missing lines."""
+    rng = np.random.default_rng(seed)
+    y = np.repeat(rng.integers(0, 3, n // 10 + 1), 10)[:n]
+    spread = rng.uniform(0.8, 1.2, n)
+    shift = np.select([y == 0, y == 2], [1.0, -1.0], 0.0) * rng.uniform(0.3, 0.9, n)
+    X = np.stack([-spread + shift, spread + shift], axis=1) + rng.normal(0, 0.3, (n, 2))
+    X[rng.choice(n, n // 20, replace=False), rng.integers(0, 2)] = np.nan
+    return X, y
+
+
+def test_grid_search_under_noise_scores_each_cell_like_predict() -> None:
+    X, y = drive_slopes(90, 4)
+    ok = np.all(np.isfinite(X), axis=1)
+    clf = UUDirectionClassifier(shots=None).fit(X, y)
+    theta = clf.slope_angles(X[ok])
+    centroids, margins = np.linspace(0, 2 * np.pi, 7, endpoint=False), np.linspace(0, 0.6, 5)
+    noise = NoiseSpec("amplitude-damping", 0.35, readout=0.03)
+    ic, im, acc = grid_search(theta[:, 0], theta[:, 1], y[ok], centroids, margins, noise=noise)
+    for i, c in enumerate(centroids):
+        for j, m in enumerate(margins):
+            cell = fixed(float(c), float(m)).fit(theta, y[ok])  # identity map on the angles
+            assert acc[i, j] == np.mean(cell.predict(theta, noise=noise) == y[ok])
+    assert acc[ic, im] == acc.max()
+    # the noiseless surface differs: noise moves the probabilities
+    assert not np.array_equal(
+        acc, grid_search(theta[:, 0], theta[:, 1], y[ok], centroids, margins)[2]
+    )
+
+
+def test_train_noise_zero_strength_equals_training_without_noise() -> None:
+    X, y = drive_slopes(120, 3)
+    est = UUDirectionClassifier(shots=None, n_centroids=120, n_margins=51)
+    plain = clone(est).fit(X, y)
+    same = clone(est).set_params(train_noise=NoiseSpec("bit-flip", 0.0)).fit(X, y)
+    assert same.centroid_ == pytest.approx(plain.centroid_, abs=1e-12)
+    assert same.margin_ == pytest.approx(plain.margin_, abs=1e-12)
+    assert same.train_accuracy_ == plain.train_accuracy_
+
+
+@pytest.mark.parametrize(
+    "noise", [NoiseSpec("bit-flip", 0.4), NoiseSpec("amplitude-damping", 0.6, readout=0.05)]
+)
+def test_training_under_noise_fits_the_noisy_circuits(noise: NoiseSpec) -> None:
+    X, y = drive_slopes(120, 3)
+    ok = np.all(np.isfinite(X), axis=1)
+    est = UUDirectionClassifier(shots=None, n_centroids=120, n_margins=51, refine=False)
+    plain = clone(est).fit(X, y)
+    noisy = clone(est).set_params(train_noise=noise).fit(X, y)
+    # the noiseless choice lies on the same grid, so the noisy search does at least as well
+    acc_noisy = np.mean(noisy.predict(X[ok], noise=noise) == y[ok])
+    assert acc_noisy >= np.mean(plain.predict(X[ok], noise=noise) == y[ok])
+    assert noisy.train_accuracy_ == pytest.approx(acc_noisy, abs=1e-12)
+    assert noisy.accuracy_grid_ is not None and noisy.accuracy_grid_.max() == acc_noisy
+    # with the refinement, the training accuracy under noise can only rise
+    refined = clone(noisy).set_params(refine=True).fit(X, y)
+    assert refined.train_accuracy_ >= noisy.train_accuracy_
+
+
+def test_bit_flip_training_shrinks_the_margin() -> None:
+    # bit flip at p=0.4 after both gates scales P1 - P2 by (1 - 2p)**2 = 0.04
+    X, y = drive_slopes(120, 3)
+    plain = UUDirectionClassifier(shots=None).fit(X, y)
+    noisy = UUDirectionClassifier(shots=None, train_noise=NoiseSpec("bit-flip", 0.4)).fit(X, y)
+    assert noisy.margin_ < plain.margin_ * 0.2
+    with pytest.raises(ParameterError, match="^train_noise='bit-flip:0.4' is invalid"):
+        UUDirectionClassifier(train_noise="bit-flip:0.4").fit(X, y)
+
+
+@pytest.fixture(scope="module")
+def folds() -> tuple[np.ndarray, list]:
+    X, y = drive_slopes(150, 5)
+    parts = [np.arange(0, 50), np.arange(50, 100), np.arange(100, 150)]
+    models = []
+    for k, rows in enumerate(parts):
+        train = np.setdiff1d(np.arange(150), rows)
+        est = UUDirectionClassifier(
+            shots=None, angle_map=("arctan", "minmax", "arctan")[k], n_centroids=90, n_margins=26
+        )
+        models.append((rows, est.fit(X[train], y[train])))
+    return X, models
+
+
+@pytest.mark.parametrize("channel", [*CHANNELS, None])
+def test_predict_many_equals_each_predict(folds: tuple, channel: str | None) -> None:
+    X, models = folds
+    for p in (0.0, 0.3, 0.9):
+        noise = NoiseSpec(channel, p if channel else 0.0, readout=0.04 if p == 0.3 else 0.0)
+        expected = np.concatenate([est.predict(X[rows], noise=noise) for rows, est in models])
+        got = UUDirectionClassifier.predict_many(models, X, noise=noise)
+        np.testing.assert_array_equal(got, expected)
+    assert UUDirectionClassifier.predict_many([], X).shape == (0,)
+
+
+def test_predict_many_shots_noise_and_bad_models(folds: tuple) -> None:
+    X, models = folds
+    noise = NoiseSpec("depolarizing", 0.2)
+    a = UUDirectionClassifier.predict_many(models, X, noise=noise, shots=64, rng=3)
+    assert np.array_equal(
+        a, UUDirectionClassifier.predict_many(models, X, noise=noise, shots=64, rng=3)
+    )
+    assert not np.array_equal(a, UUDirectionClassifier.predict_many(models, X, noise=noise))
+    # without a noise argument the models' own noise is used, when they agree
+    own = [(rows, clone(est).set_params(noise=noise)) for rows, est in models]
+    for (_, twin), (_, est) in zip(own, models, strict=True):
+        twin.__dict__.update({k: v for k, v in vars(est).items() if k.endswith("_")})
+    np.testing.assert_array_equal(
+        UUDirectionClassifier.predict_many(own, X),
+        UUDirectionClassifier.predict_many(models, X, noise=noise),
+    )
+    own[0][1].noise = None
+    with pytest.raises(ParameterError, match="noise settings differ"):
+        UUDirectionClassifier.predict_many(own, X)
+    with pytest.raises(ParameterError, match=r"^models\[0\]='<str>' is invalid"):
+        UUDirectionClassifier.predict_many([(np.arange(3), "model")], X)
+    with pytest.raises(NotFittedError):
+        UUDirectionClassifier.predict_many([(np.arange(3), UUDirectionClassifier())], X)
+    with pytest.raises(ParameterError, match="^shots=0 is invalid"):
+        UUDirectionClassifier.predict_many(models, X, shots=0)
+
+
+def test_train_noise_is_saved_by_label_in_model_headers() -> None:
+    # model files keep estimator parameters as JSON (noise models by their label); the
+    # fitted arrays' round trip is tested with the model files themselves
+    from qdcnn.experiments.direction_model import _params_from_json, _params_to_json
+
+    noise = NoiseSpec("phase-damping", 0.25, readout=0.01)
+    params = UUDirectionClassifier(shots=None, train_noise=noise).get_params()
+    header = json.loads(json.dumps(_params_to_json(params)))
+    assert header["train_noise"] == {"noise": "phase-damping:0.25,readout:0.01"}
+    back = UUDirectionClassifier().set_params(**_params_from_json(header))
+    assert back.get_params() == params

@@ -249,7 +249,9 @@ def test_restarts_keep_the_run_of_lowest_training_objective(rng: np.random.Gener
 def test_angle_span_must_be_in_zero_one(rng: np.random.Generator) -> None:
     X, y = road_slopes(20, rng)
     for span in (0.0, 1.5, True):
-        with pytest.raises(ParameterError, match=f"^angle_span={span!r} is invalid: a number in"):
+        with pytest.raises(
+            ParameterError, match=f"^angle_span={span!r} is invalid: a finite number in"
+        ):
             VQCClassifier(angle_span=span).fit(X, y)
 
 
@@ -318,3 +320,80 @@ def test_feature_map_states_check_their_input() -> None:
         feature_map_states(np.zeros((3, 3)))
     with pytest.raises(ParameterError, match="feature_map_reps=0 is invalid"):
         feature_map_states(np.zeros((3, 2)), 0)
+
+
+@pytest.fixture(scope="module")
+def vqc_folds() -> tuple[np.ndarray, list]:
+    rng = np.random.default_rng(8)
+    X, y = road_slopes(90, rng)
+    X[[3, 40], 1] = np.nan
+    parts = [np.arange(0, 30), np.arange(30, 60), np.arange(60, 90)]
+    settings = [
+        {"interpret": "min2"},
+        {"interpret": "mod3", "seed": 2},
+        {"feature_map_reps": 1, "ansatz_reps": 2},  # another circuit shape: its own batch
+    ]
+    models = []
+    for rows, kw in zip(parts, settings, strict=True):
+        train = np.setdiff1d(np.arange(90), rows)
+        models.append((rows, VQCClassifier(maxiter=12, **kw).fit(X[train], y[train])))
+    return X, models
+
+
+@pytest.mark.parametrize(
+    "noise",
+    [
+        NoiseSpec(),
+        NoiseSpec("depolarizing", 0.3),
+        NoiseSpec("amplitude-damping", 0.7, readout=0.05),
+        NoiseSpec("phase-damping-paper", 0.2),
+    ],
+)
+def test_predict_many_equals_each_predict(vqc_folds: tuple, noise: NoiseSpec) -> None:
+    X, models = vqc_folds
+    expected = np.concatenate([est.predict(X[rows], noise=noise) for rows, est in models])
+    np.testing.assert_array_equal(VQCClassifier.predict_many(models, X, noise=noise), expected)
+    # one model at a time gives the same
+    one_by_one = [VQCClassifier.predict_many([m], X, noise=noise) for m in models]
+    np.testing.assert_array_equal(np.concatenate(one_by_one), expected)
+
+
+def test_predict_many_shots_and_known_answer(vqc_folds: tuple) -> None:
+    X, models = vqc_folds
+    noise = NoiseSpec("bit-flip", 0.1)
+    a = VQCClassifier.predict_many(models, X, noise=noise, shots=16, rng=4)
+    np.testing.assert_array_equal(
+        a, VQCClassifier.predict_many(models, X, noise=noise, shots=16, rng=4)
+    )
+    assert not np.array_equal(
+        a, VQCClassifier.predict_many(models, X, noise=noise, shots=16, rng=5)
+    )
+    # depolarizing at p=1 leaves I/4: "min2" gives classes 1/4, 1/4, 1/2 -> right (2),
+    # "mod3" gives 1/2, 1/4, 1/4 -> left (0); rows with a missing feature get the majority
+    rows, est = models[0]
+    full = VQCClassifier.predict_many([(rows, est)], X, noise=NoiseSpec("depolarizing", 1.0))
+    ok = np.all(np.isfinite(X[rows]), axis=1)
+    assert (full[ok] == 2).all() and (full[~ok] == est.majority_class_).all()
+    rows, est = models[1]
+    full = VQCClassifier.predict_many([(rows, est)], X, noise=NoiseSpec("depolarizing", 1.0))
+    ok = np.all(np.isfinite(X[rows]), axis=1)
+    assert (~ok).any() and (full[ok] == 0).all() and (full[~ok] == est.majority_class_).all()
+    with pytest.raises(ParameterError, match=r"^models\[0\]='<UUDirectionClassifier>' is invalid"):
+        from qdcnn.quantum.direction import UUDirectionClassifier
+
+        VQCClassifier.predict_many([(rows, UUDirectionClassifier())], X)
+
+
+def test_train_noise_through_set_params_retrains_under_noise(rng: np.random.Generator) -> None:
+    X, y = road_slopes(60, rng)
+    clf = VQCClassifier(maxiter=10).fit(X, y)
+    noise = NoiseSpec("depolarizing", 0.4)
+    noisy = clone(clf).set_params(train_noise=noise).fit(X, y)
+    # same start, different objective: the noisy run's first evaluation is the noisy loss
+    np.testing.assert_array_equal(noisy.initial_weights_, clf.initial_weights_)
+    probs = class_probabilities(
+        noisy.scale_features(X), noisy.initial_weights_, interpret="min2", noise=noise
+    )
+    onehot = np.eye(3)[y]
+    assert noisy.objective_history_[0] == pytest.approx(loss_value(probs, onehot, "mse"), abs=1e-12)
+    assert noisy.objective_history_[0] != pytest.approx(clf.objective_history_[0], abs=1e-6)

@@ -31,10 +31,16 @@ Angle maps (both slopes share one map, so the two circuits stay comparable):
 
 Training (:meth:`UUDirectionClassifier.fit`): a grid search that maximises training
 accuracy over ``n_centroids`` centroids on ``[0, 2 pi)`` and ``n_margins`` margins on
-``[0, 1]``, on exact noiseless probabilities of all centroids x all slopes in one batched
-circuit run, then (``refine=True``) on a 41 x 41 grid spanning one coarse step either side
-of the chosen cell. Accuracy is piecewise constant, so ties are broken towards the middle
-of the widest optimal plateau (highest accuracy averaged over a 5 x 5 grid neighbourhood).
+``[0, 1]``, on exact probabilities of all centroids x all slopes in one batched circuit run
+(:func:`grid_search`), then (``refine=True``) on a 41 x 41 grid spanning one coarse step
+either side of the chosen cell. Accuracy is piecewise constant, so ties are broken towards
+the middle of the widest optimal plateau (highest accuracy averaged over a 5 x 5 grid
+neighbourhood). The probabilities are noiseless unless ``train_noise`` is set; then the
+same search runs on the density-matrix probabilities under that noise (training under
+noise: ``clone(clf).set_params(train_noise=noise).fit(X, y)``).
+
+Batched prediction (:meth:`UUDirectionClassifier.predict_many`): several fitted models,
+each on its own rows (the folds of a cross-validation), in one circuit run.
 
 Missing lines. A row with a non-finite value in either slope cannot be encoded; it is
 predicted as the majority class of the training labels (ties: lowest class index), with
@@ -57,113 +63,39 @@ from scipy.ndimage import uniform_filter
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
+from qdcnn._validation import (
+    check_bool,
+    check_choice,
+    check_direction_labels,
+    check_feature_pairs,
+    check_float,
+    check_int,
+    check_optional_shots,
+    check_seed,
+)
 from qdcnn.config import DirectionConfig
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
-from qdcnn.errors import InputError, ParameterError
+from qdcnn.errors import InputError
+from qdcnn.quantum._checks import check_fitted_models, check_noise, shared_noise
 from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.execute import check_backend, run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import check_shots
 
 ANGLE_MAPS: tuple[str, ...] = ("arctan", "minmax", "identity")
 N_CLASSES = len(DIRECTIONS)
 _DEFAULTS = DirectionConfig()
-#: largest number of one-qubit circuits simulated in one call during the grid search
-_MAX_BATCH = 4_000_000
+#: Most one-qubit circuits simulated in one call of the grid search, with or without noise
+#: (under noise a circuit is a 2 x 2 density matrix: about 0.3 GB of work arrays per call).
+MAX_SEARCH_BATCH = 1_000_000
 
 
-# ---------------------------------------------------------------- shared input checks
-
-
-def check_features(
-    X: ArrayLike, feature_columns: Sequence[int] | None, n_features_in: int | None = None
-) -> NDArray[np.float64]:
-    """The two feature columns of ``X`` as a float array ``(N, 2)`` (NaN kept).
-
-    Parameters
-    ----------
-    X : array_like, shape (N, F)
-        Samples; the first two columns are normally ``[slope_left, slope_right]``.
-    feature_columns : pair of int or None
-        ``None`` requires ``F == 2``; a pair picks those two columns of a wider ``X``
-        (for example ``(0, 1)`` for the slopes of a feature table with extra columns).
-    n_features_in : int or None
-        Number of columns seen in ``fit``; ``X`` must have as many.
-
-    Raises
-    ------
-    ParameterError
-        Wrong shape or number of columns, or an invalid ``feature_columns``.
-    """
-    try:
-        arr = np.asarray(X, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError("X", f"<{type(X).__name__}>", "a numeric array (N, 2)") from None
-    if arr.ndim != 2:
-        raise ParameterError("X", f"<array of shape {arr.shape}>", "a 2-D array (N, F)")
-    f = arr.shape[1]
-    if n_features_in is not None and f != n_features_in:
-        raise ParameterError("X", f"<{f} features>", f"{n_features_in} features, as in fit")
-    if feature_columns is None:
-        if f != 2:
-            raise ParameterError(
-                "X",
-                f"<{f} features>",
-                "exactly 2 features [slope_left, slope_right]; "
-                "pass feature_columns=(i, j) to pick two columns of a wider table",
-            )
-        return arr
-    cols = tuple(feature_columns)
-    ok = len(cols) == 2 and all(
-        isinstance(c, int | np.integer) and not isinstance(c, bool) and -f <= c < f for c in cols
-    )
-    if not ok or cols[0] % f == cols[1] % f:
-        raise ParameterError("feature_columns", feature_columns, f"two distinct indices of {f}")
-    return arr[:, list(cols)]
-
-
-def check_labels(y: ArrayLike, n_samples: int) -> NDArray[np.int64]:
-    """Direction labels as ``int64`` class indices 0 (left), 1 (straight), 2 (right)."""
-    arr = np.asarray(y)
-    if arr.ndim != 1 or arr.shape[0] != n_samples:
-        raise ParameterError("y", f"<array of shape {arr.shape}>", f"shape ({n_samples},)")
-    if not np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_:
-        raise ParameterError("y", f"<{arr.dtype} array>", "class indices 0, 1 or 2")
-    if n_samples and not np.all(np.isin(arr, np.arange(N_CLASSES))):
-        raise ParameterError("y", f"<values {np.unique(arr)[:6].tolist()}>", "0, 1 or 2")
-    return arr.astype(np.int64)
-
-
-def check_noise(noise: object, name: str = "noise") -> NoiseSpec | None:
-    """Return ``noise`` if it is a :class:`NoiseSpec` or ``None``, else raise."""
-    if noise is not None and not isinstance(noise, NoiseSpec):
-        raise ParameterError(name, noise, "a qdcnn.quantum.noise.NoiseSpec or None")
-    return noise
-
-
-def check_shots_or_none(shots: object) -> int | None:
-    """Return ``shots`` if it is ``None`` or a positive integer, else raise."""
-    return None if shots is None else check_shots(shots)  # type: ignore[arg-type]
+# ---------------------------------------------------------------- shared helpers
 
 
 def class_prior(y: NDArray[np.int64]) -> NDArray[np.float64]:
     """Training class frequencies over the three directions."""
     counts = np.bincount(y, minlength=N_CLASSES).astype(np.float64)
     return counts / max(counts.sum(), 1.0)
-
-
-def _number(name: str, value: object, lo: float, hi: float, what: str) -> float:
-    ok = isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
-    if not ok or not np.isfinite(float(value)) or not lo <= float(value) <= hi:  # type: ignore[arg-type]
-        raise ParameterError(name, value, what)
-    return float(value)  # type: ignore[arg-type]
-
-
-def _count(name: str, value: object, lo: int) -> int:
-    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
-    if not ok or int(value) < lo:  # type: ignore[call-overload]
-        raise ParameterError(name, value, f"an integer >= {lo}")
-    return int(value)  # type: ignore[call-overload]
 
 
 # ---------------------------------------------------------------- the rule
@@ -209,13 +141,15 @@ def grid_search(
     margins: NDArray[np.float64],
     *,
     periodic: bool = True,
+    noise: NoiseSpec | None = None,
 ) -> tuple[int, int, NDArray[np.float64]]:
     """Training accuracy of the rule for every centroid x margin, and the chosen cell.
 
     The probabilities of all centroids x all slopes come from batched exact UU-dagger
-    circuit runs (one run unless it would exceed ``_MAX_BATCH`` circuits). For each
-    centroid the accuracy of every margin follows from one sort-free pass: sample ``i`` is
-    predicted straight exactly for the margins ``> |d_i|``.
+    circuit runs (one run unless it would exceed :data:`MAX_SEARCH_BATCH` circuits),
+    noiseless or under ``noise``. For each centroid the accuracy of every margin follows
+    from one sort-free pass: sample ``i`` is predicted straight exactly for the margins
+    ``> |d_i|``.
 
     Parameters
     ----------
@@ -229,6 +163,8 @@ def grid_search(
         Candidate margins, ascending.
     periodic : bool
         Whether ``centroids`` cover the whole circle (the tie-break smoothing then wraps).
+    noise : NoiseSpec or None
+        Noise of the circuits (density-matrix probabilities); ``None`` for none.
 
     Returns
     -------
@@ -238,12 +174,13 @@ def grid_search(
     """
     n, c, m = theta1.size, centroids.size, margins.size
     thetas = np.concatenate([theta1, theta2])
-    per_run = max(1, _MAX_BATCH // max(2 * n, 1))
+    noise = check_noise(noise)
+    per_run = max(1, MAX_SEARCH_BATCH // max(2 * n, 1))
     d_rows = []
     for start in range(0, c, per_run):
         cs = centroids[start : start + per_run]
         circuit = uu_dagger_circuit(np.repeat(cs, 2 * n), np.tile(thetas, cs.size))
-        p0 = run_probabilities(circuit)[:, 0].reshape(cs.size, 2, n)
+        p0 = run_probabilities(circuit, noise=noise)[:, 0].reshape(cs.size, 2, n)
         d_rows.append(p0[:, 0] - p0[:, 1])
     d = np.concatenate(d_rows)  # (C, N)
     sign_class = np.where(d > 0, RIGHT, LEFT)
@@ -280,11 +217,13 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         Whether :meth:`fit` also chooses the margin (grid on ``[0, 1]``).
     shots : int or None
         Shots per circuit at prediction (paper: 1024); ``None`` for exact probabilities.
-        Training always uses exact noiseless probabilities.
+        Training always uses exact probabilities.
     backend : {"numpy", "aer"}
         Simulator used at prediction.
     noise : NoiseSpec or None
         Gate/readout noise at prediction (a per-call ``noise`` argument overrides it).
+    train_noise : NoiseSpec or None
+        Noise of the circuits whose exact probabilities training scores (``None``: none).
     seed : int
         Seed of the shot sampling; every prediction call re-seeds, so repeated calls agree.
     angle_map : {"arctan", "minmax", "identity"}
@@ -314,7 +253,8 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
     majority_class_ : int
         Prediction for rows with a missing slope.
     train_accuracy_ : float
-        Exact-probability accuracy on the training rows with both slopes.
+        Exact-probability accuracy (under ``train_noise``) on the training rows with both
+        slopes.
     accuracy_grid_ : ndarray, shape (n_centroids, n_margins) or None
         The coarse search's accuracy surface (``None`` when nothing was searched).
     classes_ : ndarray
@@ -352,6 +292,7 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         shots: int | None = _DEFAULTS.shots,
         backend: str = "numpy",
         noise: NoiseSpec | None = None,
+        train_noise: NoiseSpec | None = None,
         seed: int = 0,
         angle_map: str = "arctan",
         slope_scale: float | None = None,
@@ -367,6 +308,7 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.shots = shots
         self.backend = backend
         self.noise = noise
+        self.train_noise = train_noise
         self.seed = seed
         self.angle_map = angle_map
         self.slope_scale = slope_scale
@@ -384,24 +326,22 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
     # ------------------------------------------------------------ parameters
 
     def _check_params(self) -> None:
-        _number("straight_margin", self.straight_margin, 0.0, 1.0, "a number in [0, 1]")
+        check_float("straight_margin", self.straight_margin, 0.0, 1.0)
         if self.centroid is not None:
-            _number("centroid", self.centroid, -1e6, 1e6, "an angle in radians or None")
-        if not isinstance(self.train_margin, bool | np.bool_):
-            raise ParameterError("train_margin", self.train_margin, "True or False")
-        if not isinstance(self.refine, bool | np.bool_):
-            raise ParameterError("refine", self.refine, "True or False")
-        check_shots_or_none(self.shots)
+            check_float("centroid", self.centroid, -1e6, 1e6)
+        check_bool("train_margin", self.train_margin)
+        check_bool("refine", self.refine)
+        check_optional_shots(self.shots)
         check_backend(self.backend)
         check_noise(self.noise)
-        if self.angle_map not in ANGLE_MAPS:
-            raise ParameterError("angle_map", self.angle_map, "'arctan', 'minmax' or 'identity'")
+        check_noise(self.train_noise, "train_noise")
+        check_choice("angle_map", self.angle_map, ANGLE_MAPS)
         if self.slope_scale is not None:
-            _number("slope_scale", self.slope_scale, 1e-12, np.inf, "a number > 0 or None")
-        _count("seed", self.seed, 0)
-        _count("n_centroids", self.n_centroids, 1)
-        _count("n_margins", self.n_margins, 1)
-        _number("temperature", self.temperature, 1e-6, np.inf, "a number > 0")
+            check_float("slope_scale", self.slope_scale, 0.0, open_lo=True)
+        check_seed("seed", self.seed)
+        check_int("n_centroids", self.n_centroids, 1)
+        check_int("n_margins", self.n_margins, 1)
+        check_float("temperature", self.temperature, 1e-6)
 
     # ------------------------------------------------------------ angles
 
@@ -442,8 +382,8 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
             Direction classes 0 (left), 1 (straight), 2 (right).
         """
         self._check_params()
-        feats = check_features(X, self.feature_columns)
-        labels = check_labels(y, feats.shape[0])
+        feats = check_feature_pairs(X, self.feature_columns)
+        labels = check_direction_labels(y, feats.shape[0])
         if feats.shape[0] == 0:
             raise InputError("X", "no samples to fit")
         self.n_features_in_ = int(np.asarray(X).shape[1])
@@ -466,7 +406,8 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
             self.centroid_, self.margin_ = float(self.centroid), float(self.straight_margin)
         self.train_accuracy_ = float("nan")
         if ok.any():
-            p = run_probabilities(uu_dagger_circuit(self.centroid_, theta.T.ravel()))[:, 0]
+            circuit = uu_dagger_circuit(self.centroid_, theta.T.ravel())
+            p = run_probabilities(circuit, noise=self.train_noise)[:, 0]
             n = theta.shape[0]
             self.train_accuracy_ = float(np.mean(rule(p[:n], p[n:], self.margin_) == yk))
         return self
@@ -486,7 +427,8 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
             np.linspace(0.0, 1.0, self.n_margins) if self.train_margin else [self.straight_margin],
             dtype=np.float64,
         )
-        ic, im, accuracy = grid_search(theta[:, 0], theta[:, 1], y, cgrid, mgrid)
+        noise = self.train_noise
+        ic, im, accuracy = grid_search(theta[:, 0], theta[:, 1], y, cgrid, mgrid, noise=noise)
         centroid, margin = float(cgrid[ic]), float(mgrid[im])
         if self.refine:
             # a 41 x 41 grid spanning one coarse step either side of the chosen cell
@@ -495,7 +437,9 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
             cfine = np.linspace(centroid - cstep, centroid + cstep, 41 if cstep else 1)
             mfine = np.unique(np.clip(np.linspace(margin - mstep, margin + mstep, 41), 0, 1))
             mfine = mfine if mstep else np.array([margin])
-            ic, im, _ = grid_search(theta[:, 0], theta[:, 1], y, cfine, mfine, periodic=False)
+            ic, im, _ = grid_search(
+                theta[:, 0], theta[:, 1], y, cfine, mfine, periodic=False, noise=noise
+            )
             centroid = float(np.mod(cfine[ic], 2 * np.pi)) if cstep else centroid
             margin = float(mfine[im])
         return centroid, margin, accuracy
@@ -511,8 +455,8 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         (pass ``NoiseSpec()`` for an ideal run).
         """
         check_is_fitted(self, "centroid_")
-        feats = check_features(X, self.feature_columns, self.n_features_in_)
-        noise = check_noise(noise) or self.noise
+        feats = check_feature_pairs(X, self.feature_columns, self.n_features_in_)
+        noise = self.noise if noise is None else check_noise(noise)
         out = np.full(feats.shape, np.nan)
         ok = np.all(np.isfinite(feats), axis=1)
         if ok.any():
@@ -555,3 +499,69 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         ok = np.isfinite(d)
         out[ok] = soft_scores(d[ok], self.margin_, float(self.temperature))
         return out
+
+    @classmethod
+    def predict_many(
+        cls,
+        models: Sequence[tuple[ArrayLike, UUDirectionClassifier]],
+        X: ArrayLike,
+        *,
+        noise: NoiseSpec | None = None,
+        shots: int | None = None,
+        rng: int | np.random.Generator | None = None,
+        backend: str = "numpy",
+    ) -> NDArray[np.int64]:
+        """Predictions of several fitted classifiers, each on its own rows, in one circuit run.
+
+        All models' UU-dagger circuits (each with its own centroid) are one batch, so a
+        cross-validation's folds are classified under a noise setting in one simulation.
+
+        Parameters
+        ----------
+        models : sequence of (rows, UUDirectionClassifier)
+            Fitted classifiers and the row indices of ``X`` each one predicts.
+        X : array_like, shape (N, F)
+            Features.
+        noise : NoiseSpec or None
+            Noise of the run; ``None`` uses the models' own ``noise`` (the same for all).
+        shots : int or None
+            Shots per circuit; ``None`` (default) for exact probabilities. The models' own
+            ``shots`` and ``seed`` are not used: one run has one setting.
+        rng : int, Generator or None
+            Seed or generator of the shots.
+        backend : {"numpy", "aer"}
+            Simulator of the run.
+
+        Returns
+        -------
+        ndarray of int64
+            All models' predictions, concatenated in the order of ``models``. With exact
+            probabilities they equal each model's ``predict(X[rows], noise=noise)``.
+        """
+        pairs = check_fitted_models(cls, models)
+        run_noise = shared_noise([est for _, est in pairs], noise)
+        check_optional_shots(shots)
+        x = np.asarray(X, dtype=np.float64)
+        parts, centroids, angles = [], [], []
+        for rows, est in pairs:
+            feats = check_feature_pairs(x[rows], est.feature_columns, est.n_features_in_)
+            ok = np.all(np.isfinite(feats), axis=1)
+            theta = est.slope_angles(feats[ok])
+            parts.append((est, ok))
+            angles.append(theta.T.ravel())  # this model's left slopes, then its right slopes
+            centroids.append(np.full(theta.size, est.centroid_))
+        tx = np.concatenate(angles) if angles else np.empty(0)
+        p0 = np.empty(0)
+        if tx.size:
+            circuit = uu_dagger_circuit(np.concatenate(centroids), tx)
+            p0 = run_probabilities(circuit, shots=shots, noise=run_noise, backend=backend, rng=rng)[
+                :, 0
+            ]
+        out, start = [], 0
+        for est, ok in parts:
+            n = int(ok.sum())
+            pred = np.full(ok.size, est.majority_class_, dtype=np.int64)
+            pred[ok] = rule(p0[start : start + n], p0[start + n : start + 2 * n], est.margin_)
+            out.append(pred)
+            start += 2 * n
+        return np.concatenate(out) if out else np.empty(0, dtype=np.int64)

@@ -82,6 +82,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import lru_cache
+from itertools import groupby
 from typing import Any
 
 import numpy as np
@@ -91,17 +92,19 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
+from qdcnn._validation import (
+    check_direction_labels,
+    check_feature_pairs,
+    check_float,
+    check_int,
+    check_optional_shots,
+    check_seed,
+)
 from qdcnn.config import VQCConfig
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.quantum._checks import check_fitted_models, check_noise, shared_noise
 from qdcnn.quantum.circuits import CircuitBuilder, feature_pairs, real_amplitudes, vqc_circuit
-from qdcnn.quantum.direction import (
-    N_CLASSES,
-    check_features,
-    check_labels,
-    check_noise,
-    check_shots_or_none,
-    class_prior,
-)
+from qdcnn.quantum.direction import N_CLASSES, class_prior
 from qdcnn.quantum.execute import check_backend, run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import check_shots, sample_probabilities
@@ -185,7 +188,7 @@ def basis_probabilities(
     return run_probabilities(circuit, shots=shots, noise=noise, backend=backend, rng=rng)
 
 
-def _runs_split(backend: str, noise: NoiseSpec | None) -> bool:
+def _runs_split(backend: str, noise: Any) -> bool:
     """Whether the split simulation (feature-map states, ansatz unitary) applies."""
     return backend == "numpy" and (noise is None or noise.is_ideal)
 
@@ -218,7 +221,7 @@ def feature_map_states(angles: ArrayLike, reps: int = 2) -> NDArray[np.complex12
     Hadamard product in between (the same result as simulating the gates one by one).
     """
     x = feature_pairs(angles)
-    reps = _check_int("feature_map_reps", reps, 1)
+    reps = check_int("feature_map_reps", reps, 1)
     pair = 2.0 * (np.pi - x[:, :1]) * (np.pi - x[:, 1:])
     phase = np.exp(1j * (2.0 * x[:, :1] * _BIT0 + 2.0 * x[:, 1:] * _BIT1 + pair * (_BIT0 != _BIT1)))
     state = 0.5 * phase  # the first H layer takes |00> to the uniform superposition
@@ -231,7 +234,7 @@ def ansatz_unitary(weights: ArrayLike, reps: int = 1) -> NDArray[np.complex128]:
     """The unitary of ``real_amplitudes(2, reps)``: ``(1, 4, 4)``, or ``(N, 4, 4)`` for
     per-sample weights of shape ``(N, 2 (reps + 1))``."""
     w = np.asarray(weights, dtype=np.float64)
-    reps = _check_int("ansatz_reps", reps, 0)
+    reps = check_int("ansatz_reps", reps, 0)
     if w.ndim == 1:  # a trained model's weights: the same unitary for every prediction
         return _shared_ansatz_unitary(tuple(w.tolist()), reps)
     return _real_amplitudes_unitary(w, reps)
@@ -322,12 +325,6 @@ def make_sampler_qnn(
         output_shape=N_CLASSES,
         sampler=sampler,
     )
-
-
-def _check_int(name: str, value: object, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lo:
-        raise ParameterError(name, value, f"an integer >= {lo}")
-    return int(value)
 
 
 class VQCClassifier(ClassifierMixin, BaseEstimator):
@@ -450,27 +447,21 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         return tags
 
     def _check_params(self) -> None:
-        _check_int("feature_map_reps", self.feature_map_reps, 1)
-        _check_int("ansatz_reps", self.ansatz_reps, 0)
-        _check_int("maxiter", self.maxiter, 1)
+        check_int("feature_map_reps", self.feature_map_reps, 1)
+        check_int("ansatz_reps", self.ansatz_reps, 0)
+        check_int("maxiter", self.maxiter, 1)
         if self.loss not in LOSSES:
             raise ParameterError("loss", self.loss, "'mse' or 'cross_entropy'")
         interpret_table(self.interpret)
         if self.scaling not in SCALINGS:
             raise ParameterError("scaling", self.scaling, "'minmax', 'arctan' or 'none'")
-        check_shots_or_none(self.shots)
+        check_optional_shots(self.shots)
         check_backend(self.backend)
         check_noise(self.noise)
         check_noise(self.train_noise, "train_noise")
-        _check_int("seed", self.seed, 0)
-        _check_int("restarts", self.restarts, 1)
-        span = self.angle_span
-        if (
-            isinstance(span, bool)
-            or not isinstance(span, int | float | np.integer | np.floating)
-            or not 0.0 < float(span) <= 1.0
-        ):
-            raise ParameterError("angle_span", span, "a number in (0, 1]")
+        check_seed("seed", self.seed)
+        check_int("restarts", self.restarts, 1)
+        check_float("angle_span", self.angle_span, 0.0, 1.0, open_lo=True)
         if self.engine not in ENGINES:
             raise ParameterError("engine", self.engine, "'qdcnn' or 'qiskit-ml'")
         if self.engine == "qiskit-ml" and self.train_noise is not None:
@@ -497,7 +488,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
     def scale_features(self, X: ArrayLike) -> NDArray[np.float64]:
         """The feature-map angles ``(N, 2)`` of ``X`` under the fitted scaling (NaN kept)."""
         check_is_fitted(self, "scaler_params_")
-        feats = check_features(X, self.feature_columns, self.n_features_in_)
+        feats = check_feature_pairs(X, self.feature_columns, self.n_features_in_)
         a, b = self.scaler_params_[:, 0], self.scaler_params_[:, 1]
         span = float(self.angle_span)
         if self.scaling == "minmax":
@@ -520,8 +511,8 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
             Direction classes 0 (left), 1 (straight), 2 (right).
         """
         self._check_params()
-        feats = check_features(X, self.feature_columns)
-        labels = check_labels(y, feats.shape[0])
+        feats = check_feature_pairs(X, self.feature_columns)
+        labels = check_direction_labels(y, feats.shape[0])
         ok = np.all(np.isfinite(feats), axis=1)
         if not ok.any():
             raise InputError("X", "no row has both features finite: nothing to train on")
@@ -638,7 +629,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         """
         check_is_fitted(self, "weights_")
         angles = self.scale_features(X)
-        noise = check_noise(noise) or self.noise
+        noise = self.noise if noise is None else check_noise(noise)
         out = np.full((angles.shape[0], 4), np.nan)
         ok = np.all(np.isfinite(angles), axis=1)
         if ok.any():
@@ -670,6 +661,86 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         # rows with a missing feature carry class_prior_, whose argmax is majority_class_
         out: NDArray[np.int64] = np.argmax(self.predict_proba(X, noise), axis=1).astype(np.int64)
         return out
+
+    @classmethod
+    def predict_many(
+        cls,
+        models: Sequence[tuple[ArrayLike, VQCClassifier]],
+        X: ArrayLike,
+        *,
+        noise: NoiseSpec | None = None,
+        shots: int | None = None,
+        rng: int | np.random.Generator | None = None,
+        backend: str = "numpy",
+    ) -> NDArray[np.int64]:
+        """Predictions of several fitted VQCs, each on its own rows, in one circuit run.
+
+        The circuits of all models (per-sample ansatz weights) are one batch; models whose
+        circuits differ in shape (``feature_map_reps``, ``ansatz_reps``) cannot share one,
+        so each run of consecutive models of one shape is one batch.
+
+        Parameters
+        ----------
+        models : sequence of (rows, VQCClassifier)
+            Fitted classifiers and the row indices of ``X`` each one predicts.
+        X : array_like, shape (N, F)
+            Features.
+        noise : NoiseSpec or None
+            Noise of the run; ``None`` uses the models' own ``noise`` (the same for all).
+        shots : int or None
+            Shots per circuit; ``None`` (default) for exact probabilities. The models' own
+            ``shots`` and ``seed`` are not used: one run has one setting.
+        rng : int, Generator or None
+            Seed or generator of the shots.
+        backend : {"numpy", "aer"}
+            Simulator of the run.
+
+        Returns
+        -------
+        ndarray of int64
+            All models' predictions, concatenated in the order of ``models``. With exact
+            probabilities they equal each model's ``predict(X[rows], noise=noise)``.
+        """
+        pairs = check_fitted_models(cls, models)
+        run_noise = shared_noise([est for _, est in pairs], noise)
+        check_optional_shots(shots)
+        gen = np.random.default_rng(rng) if not isinstance(rng, np.random.Generator) else rng
+        x = np.asarray(X, dtype=np.float64)
+        out: list[NDArray[np.int64]] = []
+
+        def shape(pair: tuple[NDArray[np.intp], VQCClassifier]) -> tuple[int, int]:
+            return int(pair[1].feature_map_reps), int(pair[1].ansatz_reps)
+
+        for (fm_reps, ansatz_reps), group in groupby(pairs, key=shape):
+            parts, angles, weights = [], [], []
+            for rows, est in group:
+                a = est.scale_features(x[rows])
+                ok = np.all(np.isfinite(a), axis=1)
+                parts.append((est, ok))
+                angles.append(a[ok])
+                weights.append(np.broadcast_to(est.weights_, (int(ok.sum()), est.weights_.size)))
+            a_all = np.concatenate(angles)
+            basis = np.empty((0, 4))
+            if a_all.shape[0]:
+                basis = basis_probabilities(
+                    a_all,
+                    np.concatenate(weights),
+                    feature_map_reps=fm_reps,
+                    ansatz_reps=ansatz_reps,
+                    shots=shots,
+                    noise=run_noise,
+                    backend=backend,
+                    rng=gen,
+                )
+            start = 0
+            for est, ok in parts:
+                n = int(ok.sum())
+                pred = np.full(ok.size, est.majority_class_, dtype=np.int64)
+                classes = basis[start : start + n] @ interpret_matrix(est.interpret)
+                pred[ok] = np.argmax(classes, axis=1)
+                out.append(pred)
+                start += n
+        return np.concatenate(out) if out else np.empty(0, dtype=np.int64)
 
     def plot_objective(self, ax: Any = None) -> Any:
         """Draw ``objective_history_`` against evaluation number; returns the Axes.
