@@ -10,9 +10,10 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd, parse_angle
+from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.errors import ParameterError
+from qdcnn.experiments.circuit import parse_angle
 from qdcnn.experiments.noise_sweep import synthetic_shadow_set
 from qdcnn.quantum.circuits import vqc_circuit
 from qdcnn.quantum.simulator import probabilities

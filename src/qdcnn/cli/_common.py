@@ -27,9 +27,8 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from qdcnn.batch import Failure
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.reporting import Advance, Reporter
+from qdcnn.experiments.reporting import Advance, Failure, Reporter
 
 out = Console(highlight=False)
 err = Console(stderr=True, highlight=False)

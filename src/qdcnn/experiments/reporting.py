@@ -17,7 +17,7 @@ from typing import Any
 
 from qdcnn.batch import Failure
 
-__all__ = ["Reporter"]
+__all__ = ["Collector", "Failure", "Reporter"]
 
 Advance = Callable[..., None]
 
