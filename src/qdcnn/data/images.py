@@ -60,6 +60,18 @@ def display_path(path: PathArg) -> str:
     return os.fsencode(path).decode("utf-8", "backslashreplace")
 
 
+def is_regular_file(path: PathArg) -> bool:
+    """Whether ``path`` is a regular file; ``False`` for any path the OS cannot look up.
+
+    Unlike :meth:`pathlib.Path.is_file`, a name too long for the file system or
+    holding a NUL byte gives ``False`` instead of an exception.
+    """
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes; only regular files are opened, so a FIFO or a device never blocks."""
     shown = display_path(path)
