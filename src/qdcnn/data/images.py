@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import os
 import stat
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -147,8 +148,10 @@ def header_size(data: bytes, source: str = "<bytes>") -> tuple[int, int]:
         if accept is not None and not accept(prefix):
             continue
         try:
-            with factory(io.BytesIO(data), "") as im:
-                width, height = im.size
+            with warnings.catch_warnings():  # e.g. "Corrupt EXIF data": the decoder decides
+                warnings.simplefilter("ignore")
+                with factory(io.BytesIO(data), "") as im:
+                    width, height = im.size
         except Exception:  # Pillow's parsers raise many types on bad headers: not this format
             continue
         return int(width), int(height)

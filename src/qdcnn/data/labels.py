@@ -188,7 +188,7 @@ def infer_steering_unit(steering: ArrayLike, *, simulator_names: bool = False) -
                 "deg", "auto", f"{beyond_rad} values beyond +-{AUTO_RAD_MAX:.2f} (1.5 wheel turns)"
             )
         return SteeringUnit("rad", "auto", f"{beyond_one} values beyond +-1, up to {x.max():g}")
-    nonzero = x[x > 0]
+    nonzero = x[(x > 0) & (x <= 1.0)]  # the few values beyond 1 here are bad rows
     steps = nonzero / WHEEL_SENSOR_STEP_RAD
     on_step = int(np.count_nonzero(np.abs(steps - np.round(steps)) < 1e-6))
     if nonzero.size >= 10 and on_step >= 0.2 * nonzero.size:

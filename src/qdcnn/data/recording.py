@@ -165,8 +165,8 @@ class LabelRows:
     """The rows of one label file: the usable ones and the skipped ones with reasons.
 
     Loaders :meth:`add` each usable row and :meth:`skip` each unusable one while
-    reading, then :meth:`finish` drops repeated images, settles the steering unit
-    and refuses values outside it.
+    reading, then :meth:`finish` settles the steering unit, refuses values outside
+    it and drops repeated images.
     """
 
     source: str
@@ -187,35 +187,36 @@ class LabelRows:
     ) -> tuple[list[LabelRow], SteeringUnit, list[InputError]]:
         """Kept rows (file order), the steering unit, and every skipped row as an error.
 
-        An image listed again is dropped (the first row keeps it) and reported;
-        the unit is ``steering_unit`` or, for ``"auto"``, inferred from the rows
-        left (:func:`~qdcnn.data.labels.infer_steering_unit`); values beyond the
-        unit's range are reported. Errors are sorted by row; with ``strict`` the
-        first is raised.
+        The unit is ``steering_unit`` or, for ``"auto"``, inferred from the usable
+        rows (:func:`~qdcnn.data.labels.infer_steering_unit`); rows with values
+        beyond the unit's range are reported, then an image listed again is dropped
+        (the first row that is still usable keeps it) and reported. Errors are
+        sorted by row; with ``strict`` the first is raised.
         """
-        kept = self._unique()
-        frames = [e.frame for e in kept]
+        frames = [e.frame for e in self.entries]
         sim = bool(frames) and simulator_names is not None and simulator_names(frames)
-        unit = resolve_steering_unit(steering_unit, [e.value for e in kept], simulator_names=sim)
+        values = [e.value for e in self.entries]
+        unit = resolve_steering_unit(steering_unit, values, simulator_names=sim)
         in_range = []
-        for e in kept:
+        for e in self.entries:
             if abs(e.value) <= unit.limit:
                 in_range.append(e)
             else:
                 suffix = "" if unit.unit == "norm" else f" ({unit.unit})"
                 self.skip(e.row, f"steering {e.text} is outside {_interval(unit.limit)}{suffix}")
+        kept = self._unique(in_range)
         errors = [
             InputError(f"{self.source}:row {row}", reason)
             for row, reason in sorted(self.skipped, key=lambda item: item[0])
         ]
         if self.strict and errors:
             raise errors[0]
-        return in_range, unit, errors
+        return kept, unit, errors
 
-    def _unique(self) -> list[LabelRow]:
+    def _unique(self, entries: list[LabelRow]) -> list[LabelRow]:
         first: dict[Path, LabelRow] = {}
         kept = []
-        for e in self.entries:
+        for e in entries:
             seen = first.get(e.frame)
             if seen is None:
                 first[e.frame] = e

@@ -70,6 +70,11 @@ def read_shadow_model(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise InputError(p, f"not a qdcnn shadow model (no header with kind {KIND!r})")
     if data["kind"] != KIND:
         raise InputError(p, f"holds a {_short(data['kind'])!r}, not a {KIND!r}")
+    version = data.get("format_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise InputError(
+            p, f"format version {_short(version)!r} of {KIND!r} is not supported (reads 1, 2)"
+        )
     if "format_version" not in data:
         fields = {k: v for k, v in data.items() if k != "kind"}  # version 1
         if "meta" in fields:
@@ -107,7 +112,7 @@ def _read_json(p: Path) -> Any:
 def _checked(fields: dict[str, Any], source: str) -> dict[str, Any]:
     unknown = sorted(set(fields) - _FIELDS)
     if unknown:
-        raise InputError(source, f"unknown field {unknown[0]!r} in a shadow model")
+        raise InputError(source, f"unknown field {_short(unknown[0])!r} in a shadow model")
     missing = [name for name in _SINGLE if name not in fields]
     if missing:
         raise InputError(source, f"shadow model has no field {missing[0]!r}")
@@ -176,6 +181,6 @@ def _short(value: object) -> object:
     """``value`` itself when it prints short, else a placeholder naming its type."""
     if value is None or isinstance(value, bool | int | float):
         return value
-    if isinstance(value, str) and len(value) <= 40:
-        return value
+    if isinstance(value, str):
+        return value if len(value) <= 40 else value[:37] + "..."
     return f"<{type(value).__name__}>"
