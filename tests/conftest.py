@@ -2,12 +2,33 @@
 
 from __future__ import annotations
 
+import os
+from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+#: Multiplies the example counts of the fuzz suite (tests/fuzz): QDCNN_FUZZ_SCALE=20 for a long run.
+FUZZ_SCALE = float(os.environ.get("QDCNN_FUZZ_SCALE", "1"))
+
+try:
+    from hypothesis import HealthCheck, settings
+except ImportError:  # a dev dependency: only the fuzz tests need it, and they skip without it
+    pass
+else:
+    # Fixed seed (derandomize), no example database, and a deadline per example; each fuzz
+    # test sets its own max_examples from FUZZ_SCALE.
+    settings.register_profile(
+        "qdcnn-fuzz",
+        derandomize=True,
+        database=None,
+        deadline=timedelta(seconds=20),
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+        print_blob=True,
+    )
 
 
 @pytest.fixture

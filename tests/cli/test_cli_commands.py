@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -87,14 +88,14 @@ def test_unreadable_file_reports_permission(
 ) -> None:
     target = tmp_path / "locked.png"
     write_image(target, road())
-    real = np.fromfile
+    real = os.open
 
-    def fake_fromfile(path, *args, **kwargs):  # type: ignore[no-untyped-def]
-        if Path(path) == target:
+    def fake_open(path, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if Path(os.fsdecode(path)) == target:
             raise PermissionError(13, "Permission denied")
         return real(path, *args, **kwargs)
 
-    monkeypatch.setattr(image_io.np, "fromfile", fake_fromfile)
+    monkeypatch.setattr(image_io.os, "open", fake_open)  # tests run as root: chmod cannot refuse
     res = runner.invoke(
         app, ["detect-shadows", str(target), "--out", str(tmp_path / "o"), "--json"]
     )

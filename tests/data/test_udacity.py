@@ -197,10 +197,22 @@ def test_strict_raises_first_problem(tmp_path: Path) -> None:
     )
 
 
-def test_missing_csv(tmp_path: Path) -> None:
+def test_missing_csv_and_empty_folder(tmp_path: Path) -> None:
     with pytest.raises(InputError) as info:
         load_udacity(tmp_path)
-    assert str(info.value) == f"{tmp_path / 'driving_log.csv'}: file not found"
+    assert str(info.value) == (
+        f"{tmp_path}: empty folder (a Udacity recording holds driving_log.csv and IMG/)"
+    )
+    (tmp_path / "IMG").mkdir()
+    with pytest.raises(InputError) as info:
+        load_udacity(tmp_path)
+    assert str(info.value) == (
+        f"{tmp_path}: no driving_log.csv in this folder "
+        "(a Udacity recording holds driving_log.csv and IMG/)"
+    )
+    with pytest.raises(InputError) as info:
+        load_udacity(tmp_path / "log.csv")
+    assert str(info.value) == f"{tmp_path / 'log.csv'}: file not found"
 
 
 @pytest.mark.parametrize("text", ["", "\n\n", HEADER + "\n"])

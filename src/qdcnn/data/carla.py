@@ -15,12 +15,14 @@ from __future__ import annotations
 import csv
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
-from qdcnn.data.images import IMAGE_SUFFIXES
-from qdcnn.data.recording import Recording, natural_key, parse_steering
+from qdcnn.data.images import IMAGE_SUFFIXES, display_path, is_regular_file
+from qdcnn.data.labels import check_steering_unit
+from qdcnn.data.recording import LabelRow, LabelRows, Recording, natural_key, parse_steering
 from qdcnn.errors import InputError
 
 STEER_TXT = "steer_values.txt"
@@ -42,17 +44,8 @@ STEERING_COLUMNS: tuple[str, ...] = ("steering", "steer", "angle", "steering_ang
 TIMESTAMP_COLUMNS: tuple[str, ...] = ("timestamp",)
 
 
-class _Problems:
-    def __init__(self, source: Path, strict: bool) -> None:
-        self.source = source
-        self.strict = strict
-        self.items: list[InputError] = []
-
-    def add(self, row: int, reason: str) -> None:
-        err = InputError(f"{self.source}:row {row}", reason)
-        if self.strict:
-            raise err
-        self.items.append(err)
+#: Any finite steering value is read; the unit decides the range afterwards.
+_WIDEST = math.inf
 
 
 def _image_dir(folder: Path) -> Path:
@@ -61,53 +54,61 @@ def _image_dir(folder: Path) -> Path:
 
 
 def _list_images(img_dir: Path) -> list[Path]:
-    names = [
-        e.name
-        for e in os.scandir(img_dir)
-        if e.is_file() and Path(e.name).suffix.lower() in IMAGE_SUFFIXES
-    ]
+    try:
+        names = [
+            e.name
+            for e in os.scandir(img_dir)
+            if e.is_file() and Path(e.name).suffix.lower() in IMAGE_SUFFIXES
+        ]
+    except OSError as exc:
+        raise InputError(display_path(img_dir), f"cannot list: {exc.strerror or exc}") from None
     return [img_dir / n for n in sorted(names, key=lambda n: (natural_key(n), n))]
 
 
 def _read_lines(path: Path) -> list[str]:
+    if not path.is_file():
+        raise InputError(display_path(path), "not a regular file (a label file is expected)")
     try:
         return path.read_text(encoding="utf-8-sig", errors="replace").splitlines()
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
+        raise InputError(display_path(path), f"cannot read: {exc.strerror or exc}") from None
 
 
-def _from_txt(folder: Path, txt: Path, strict: bool) -> Recording:
+def _from_txt(folder: Path, txt: Path, strict: bool, steering_unit: str) -> Recording:
     img_dir = _image_dir(folder)
     images = _list_images(img_dir)
     lines = _read_lines(txt)
+    shown = display_path(txt)
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines:
-        raise InputError(txt, "empty file: no steering values")
+        raise InputError(shown, "empty file: no steering values")
     if not images:
-        raise InputError(img_dir, "no image files")
+        raise InputError(display_path(img_dir), "no image files")
     if len(lines) != len(images):
-        raise InputError(txt, f"{len(lines)} steering values but {len(images)} images in {img_dir}")
-    problems = _Problems(txt, strict)
-    keep: list[int] = []
-    values: list[float] = []
+        raise InputError(
+            shown,
+            f"{len(lines)} steering values but {len(images)} images in {display_path(img_dir)}",
+        )
+    table = LabelRows(shown, strict)
     for i, line in enumerate(lines):
-        value, reason = parse_steering(line)
+        value, reason = parse_steering(line, _WIDEST)
         if value is None:
-            problems.add(i + 1, reason or "no steering value")
-            continue
-        keep.append(i)
-        values.append(value)
-    if not keep:
-        raise InputError(txt, f"no usable rows: all {len(lines)} values were skipped")
+            table.skip(i + 1, reason or "no steering value")
+        else:
+            table.add(LabelRow(i + 1, images[i], value, line.strip()))
+    kept, unit, problems = table.finish(steering_unit)
+    if not kept:
+        raise InputError(shown, f"no usable rows: all {len(lines)} values were skipped")
     return Recording(
         root=folder,
-        frames=[images[i] for i in keep],
-        steering=np.array(values, dtype=np.float64),
+        frames=[e.frame for e in kept],
+        steering=np.array([e.value for e in kept], dtype=np.float64),
         timestamps=None,
-        rows=np.array(keep, dtype=np.int64) + 1,
-        problems=problems.items,
+        rows=np.array([e.row for e in kept], dtype=np.int64),
+        problems=problems,
         kind="carla",
+        unit=unit,
     )
 
 
@@ -118,6 +119,11 @@ def _pick(names: list[str], accepted: tuple[str, ...]) -> int | None:
     return None
 
 
+def _is_frame_number(text: str) -> bool:
+    """ASCII digits only (``int`` refuses other Unicode digits and over 4300 of them)."""
+    return text.isascii() and text.isdigit() and len(text) <= 40
+
+
 class _ImageLookup:
     """Match a CSV's image entry to a file: by name, by stem, by frame number, or as a path."""
 
@@ -126,7 +132,7 @@ class _ImageLookup:
         images = _list_images(img_dir) if img_dir.is_dir() else []
         self.by_name = {p.name: p for p in images}
         self.by_stem = {p.stem: p for p in images}
-        self.by_number = {int(p.stem): p for p in images if p.stem.isdigit()}
+        self.by_number = {int(p.stem): p for p in images if _is_frame_number(p.stem)}
 
     def find(self, raw: str) -> Path | None:
         text = raw.strip()
@@ -134,7 +140,7 @@ class _ImageLookup:
             return None
         name = PureWindowsPath(text).name
         found = self.by_name.get(name) or self.by_stem.get(name)
-        if found is None and name.isdigit():
+        if found is None and _is_frame_number(name):
             found = self.by_number.get(int(name))
         if found is not None:
             return found
@@ -142,108 +148,136 @@ class _ImageLookup:
             return None
         given = Path(PurePosixPath(text.replace("\\", "/")))
         candidate = given if given.is_absolute() else self.csv_dir / given
-        return candidate.resolve() if candidate.is_file() else None
+        return candidate.resolve() if is_regular_file(candidate) else None
 
 
-def _from_csv(folder: Path, csv_file: Path, strict: bool) -> Recording:
+@dataclass
+class _Columns:
+    """Positions of the columns a labels CSV header names."""
+
+    width: int
+    image: int
+    steering: int
+    timestamp: int | None
+
+    @classmethod
+    def from_header(cls, fields: list[str], source: str) -> _Columns:
+        names = [f.strip().lower() for f in fields]
+        image = _pick(names, IMAGE_COLUMNS)
+        steering = _pick(names, STEERING_COLUMNS)
+        if image is None or steering is None:
+            missing = "image" if image is None else "steering"
+            raise InputError(
+                source,
+                f"header '{','.join(fields)}' has no {missing} column "
+                f"(image: {', '.join(IMAGE_COLUMNS)}; steering: {', '.join(STEERING_COLUMNS)})",
+            )
+        return cls(len(names), image, steering, _pick(names, TIMESTAMP_COLUMNS))
+
+
+def _from_csv(folder: Path, csv_file: Path, strict: bool, steering_unit: str) -> Recording:
     lookup = _ImageLookup(_image_dir(folder), csv_file.parent)
-    problems = _Problems(csv_file, strict)
-    frames: list[Path] = []
-    values: list[float] = []
-    stamps: list[float] = []
-    rows: list[int] = []
-    header: list[str] | None = None
-    image_col = steer_col = 0
-    time_col: int | None = None
+    shown = display_path(csv_file)
+    table = LabelRows(shown, strict)
+    columns, data_rows = _read_csv_rows(csv_file, lookup, table)
+    if columns is None or data_rows == 0:
+        raise InputError(shown, "empty file: no data rows")
+    kept, unit, problems = table.finish(steering_unit)
+    if not kept:
+        raise InputError(
+            shown, f"no usable rows: all {data_rows} rows were skipped (first: {problems[0]})"
+        )
+    stamps = [e.stamp for e in kept]
+    return Recording(
+        root=folder,
+        frames=[e.frame for e in kept],
+        steering=np.array([e.value for e in kept], dtype=np.float64),
+        timestamps=None if columns.timestamp is None else np.array(stamps, dtype=np.float64),
+        rows=np.array([e.row for e in kept], dtype=np.int64),
+        problems=problems,
+        kind="carla",
+        unit=unit,
+    )
+
+
+def _read_csv_rows(
+    csv_file: Path, lookup: _ImageLookup, table: LabelRows
+) -> tuple[_Columns | None, int]:
+    """Read the header and every row into ``table``; return the columns and the data-row count."""
+    columns: _Columns | None = None
     data_rows = 0
+    if not csv_file.is_file():
+        raise InputError(table.source, "not a regular file (a labels CSV is expected)")
     try:
         with open(csv_file, newline="", encoding="utf-8-sig", errors="replace") as fh:
             reader = csv.reader(fh, skipinitialspace=True)
             for fields in reader:
                 if not fields or all(not f.strip() for f in fields):
                     continue
-                row = reader.line_num
-                if header is None:
-                    header = [f.strip().lower() for f in fields]
-                    found_image = _pick(header, IMAGE_COLUMNS)
-                    found_steer = _pick(header, STEERING_COLUMNS)
-                    if found_image is None or found_steer is None:
-                        missing = "image" if found_image is None else "steering"
-                        raise InputError(
-                            csv_file,
-                            f"header '{','.join(fields)}' has no {missing} column "
-                            f"(image: {', '.join(IMAGE_COLUMNS)}; "
-                            f"steering: {', '.join(STEERING_COLUMNS)})",
-                        )
-                    image_col, steer_col = found_image, found_steer
-                    time_col = _pick(header, TIMESTAMP_COLUMNS)
+                if columns is None:
+                    columns = _Columns.from_header(fields, table.source)
                     continue
                 data_rows += 1
-                if len(fields) != len(header):
-                    problems.add(row, f"expected {len(header)} columns, found {len(fields)}")
-                    continue
-                value, reason = parse_steering(fields[steer_col])
-                if value is None:
-                    problems.add(row, reason or "no steering value")
-                    continue
-                stamp = math.nan
-                if time_col is not None:
-                    try:
-                        stamp = float(fields[time_col])
-                    except ValueError:
-                        stamp = math.nan
-                    if not math.isfinite(stamp):
-                        problems.add(row, f"timestamp '{fields[time_col].strip()}' is not a number")
-                        continue
-                image = lookup.find(fields[image_col])
-                if image is None:
-                    problems.add(row, f"image '{fields[image_col].strip()}' not found")
-                    continue
-                frames.append(image)
-                values.append(value)
-                stamps.append(stamp)
-                rows.append(row)
+                _read_csv_row(reader.line_num, fields, columns, lookup, table)
     except csv.Error as exc:
-        raise InputError(csv_file, f"not a readable CSV ({exc})") from None
+        raise InputError(table.source, f"not a readable CSV ({exc})") from None
     except OSError as exc:
-        raise InputError(csv_file, f"cannot read: {exc.strerror or exc}") from None
-    if header is None or data_rows == 0:
-        raise InputError(csv_file, "empty file: no data rows")
-    if not frames:
-        raise InputError(
-            csv_file,
-            f"no usable rows: all {data_rows} rows were skipped (first: {problems.items[0]})",
-        )
-    return Recording(
-        root=folder,
-        frames=frames,
-        steering=np.array(values, dtype=np.float64),
-        timestamps=None if time_col is None else np.array(stamps, dtype=np.float64),
-        rows=np.array(rows, dtype=np.int64),
-        problems=problems.items,
-        kind="carla",
-    )
+        raise InputError(table.source, f"cannot read: {exc.strerror or exc}") from None
+    return columns, data_rows
+
+
+def _read_csv_row(
+    row: int, fields: list[str], columns: _Columns, lookup: _ImageLookup, table: LabelRows
+) -> None:
+    if len(fields) != columns.width:
+        table.skip(row, f"expected {columns.width} columns, found {len(fields)}")
+        return
+    text = fields[columns.steering].strip()
+    value, reason = parse_steering(text, _WIDEST)
+    if value is None:
+        table.skip(row, reason or "no steering value")
+        return
+    stamp = math.nan
+    if columns.timestamp is not None:
+        stamp_text = fields[columns.timestamp].strip()
+        try:
+            stamp = float(stamp_text) if len(stamp_text) <= 64 else math.nan
+        except ValueError:
+            stamp = math.nan
+        if not math.isfinite(stamp):
+            table.skip(row, f"timestamp '{stamp_text[:64]}' is not a number")
+            return
+    image = lookup.find(fields[columns.image])
+    if image is None:
+        table.skip(row, f"image '{fields[columns.image].strip()}' not found")
+        return
+    table.add(LabelRow(row, image, value, text, stamp=stamp))
 
 
 def _find_labels(folder: Path) -> Path:
     txt = folder / STEER_TXT
-    if txt.is_file():
+    if txt.exists():
         return txt
-    if (folder / LABELS_CSV).is_file():
+    if (folder / LABELS_CSV).exists():
         return folder / LABELS_CSV
     csvs = sorted(p for p in folder.glob("*.csv") if p.is_file())
     if len(csvs) == 1:
         return csvs[0]
+    shown = display_path(folder)
     if csvs:
-        names = ", ".join(p.name for p in csvs)
+        names = ", ".join(display_path(p.name) for p in csvs)
         raise InputError(
-            folder,
+            shown,
             f"several CSV files ({names}): name the labels file {LABELS_CSV} or pass its path",
         )
-    raise InputError(folder, f"no {STEER_TXT} or labels CSV found")
+    if not any(folder.iterdir()):
+        raise InputError(shown, f"empty folder (expected images with {STEER_TXT} or a labels CSV)")
+    raise InputError(shown, f"no {STEER_TXT} or labels CSV found")
 
 
-def load_carla(path: str | os.PathLike[str], *, strict: bool = False) -> Recording:
+def load_carla(
+    path: str | os.PathLike[str], *, strict: bool = False, steering_unit: str = "auto"
+) -> Recording:
     """Load a folder of images with steering labels (CARLA-style datasets).
 
     Parameters
@@ -252,6 +286,10 @@ def load_carla(path: str | os.PathLike[str], *, strict: bool = False) -> Recordi
         The recording folder, or its label file (``steer_values.txt`` or a CSV).
     strict : bool
         Raise on the first unusable row instead of skipping it.
+    steering_unit : {"auto", "norm", "rad", "deg"}
+        Unit of the steering values; ``"auto"`` decides from the values
+        (:func:`~qdcnn.data.labels.infer_steering_unit`). The decision is
+        ``Recording.unit``.
 
     Returns
     -------
@@ -262,10 +300,11 @@ def load_carla(path: str | os.PathLike[str], *, strict: bool = False) -> Recordi
     Raises
     ------
     InputError
-        Missing folder or labels, an empty label file, no images, a count
-        mismatch between ``steer_values.txt`` and the images (naming both
-        counts), a CSV header without the needed columns, or no usable row; with
-        ``strict=True`` also the first unusable row (``"<file>:row <n>: <reason>"``).
+        A missing or empty folder, missing labels, an empty label file, no
+        images, a count mismatch between ``steer_values.txt`` and the images
+        (naming both counts), a CSV header without the needed columns, or no
+        usable row; with ``strict=True`` also the first unusable row
+        (``"<file>:row <n>: <reason>"``).
 
     Notes
     -----
@@ -277,17 +316,20 @@ def load_carla(path: str | os.PathLike[str], *, strict: bool = False) -> Recordi
     ``steer_value``; optional ``timestamp``. An image entry is matched by file
     name, by name without suffix, by frame number (``7`` matches ``000007.png``)
     or as a path relative to the CSV's folder. Rows with the wrong number of
-    columns, a steering value that is not a finite number in [-1, 1], a
-    non-numeric timestamp or no matching image are skipped into ``problems``.
-    A ``steer_values.txt`` line that is not a valid value skips its image.
+    columns, a steering value that is not a finite number in the unit's range
+    ([-1, 1] for ``norm``), a non-numeric timestamp, no matching image, or an
+    image an earlier row already listed are skipped into ``problems`` with their
+    line numbers. A ``steer_values.txt`` line that is not a valid value skips its
+    image. Image names that are not UTF-8 are listed and matched like others.
     """
+    check_steering_unit(steering_unit)
     p = Path(path)
     if not p.exists():
-        raise InputError(p, "not found")
+        raise InputError(display_path(p), "not found")
     if p.is_dir():
         folder, labels = p.resolve(), _find_labels(p.resolve())
     else:
         folder, labels = p.parent.resolve(), p.resolve()
     if labels.suffix.lower() == ".csv":
-        return _from_csv(folder, labels, strict)
-    return _from_txt(folder, labels, strict)
+        return _from_csv(folder, labels, strict, steering_unit)
+    return _from_txt(folder, labels, strict, steering_unit)

@@ -8,7 +8,10 @@ files hold: greyscale is replicated to three channels, alpha is dropped,
 
 from __future__ import annotations
 
+import io
 import os
+import stat
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,24 +25,137 @@ from qdcnn.errors import InputError
 IMAGE_SUFFIXES = frozenset(
     {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm"}
 )
-MAX_PIXELS = 2**27  # 134 megapixels: beyond this a road frame is almost surely a mistake
+#: Largest image accepted, in pixels (width x height), checked from the file header before
+#: decoding: a road frame this large is almost surely a mistake or a decompression bomb.
+MAX_PIXELS = 100_000_000
+#: Largest image file read into memory (a 100-megapixel 16-bit RGB TIFF is 600 MB).
+MAX_FILE_BYTES = 2**30
 MASK_LEVEL = 128  # masks are binarised at this 8-bit level (shadow if >= 128)
+#: Pillow header parsers of the formats qdcnn reads (Pillow's PPM parser covers PGM).
+_HEADER_FORMATS = ("PNG", "JPEG", "BMP", "TIFF", "WEBP", "PPM")
+_UNREADABLE = "not a readable image (corrupt or unsupported format)"
+
+PathArg = str | bytes | os.PathLike[str] | os.PathLike[bytes]
 
 
-def _read_bytes(path: Path) -> NDArray[np.uint8]:
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a directory, not an image file")
+def as_path(path: PathArg) -> Path:
+    """``path`` as a :class:`~pathlib.Path`; ``bytes`` names are decoded as the OS does.
+
+    Names that are not valid UTF-8 keep their bytes (as surrogate escapes), so the
+    file can still be opened; :func:`display_path` prints them readably.
+    """
+    return Path(os.fsdecode(path))
+
+
+def display_path(path: PathArg) -> str:
+    """``path`` as printable text: bytes that are not UTF-8 are written as ``\\xNN``.
+
+    A file name that is not valid UTF-8 would otherwise make printing an error
+    message fail (``UnicodeEncodeError``) on a UTF-8 terminal.
+
+    Examples
+    --------
+    >>> display_path(b"IMG/caf\\xe9.png")
+    'IMG/caf\\\\xe9.png'
+    """
+    return os.fsencode(path).decode("utf-8", "backslashreplace")
+
+
+def is_regular_file(path: PathArg) -> bool:
+    """Whether ``path`` is a regular file; ``False`` for any path the OS cannot look up.
+
+    Unlike :meth:`pathlib.Path.is_file`, a name too long for the file system or
+    holding a NUL byte gives ``False`` instead of an exception.
+    """
     try:
-        data = np.fromfile(path, dtype=np.uint8)
-    except PermissionError:
-        raise InputError(path, "cannot read: permission denied") from None
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
+def _read_bytes(path: Path) -> bytes:
+    """The file's bytes; only regular files are opened, so a FIFO or a device never blocks."""
+    shown = display_path(path)
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(shown, "file not found") from None
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
-    if data.size == 0:
-        raise InputError(path, "empty file (0 bytes)")
+        raise InputError(shown, f"cannot read: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise InputError(shown, "is a directory, not an image file")
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(shown, _not_regular(info.st_mode))
+    try:
+        # O_NONBLOCK: if the path was swapped for a FIFO after the check, open does not wait
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except PermissionError:
+        raise InputError(shown, "cannot read: permission denied") from None
+    except OSError as exc:
+        raise InputError(shown, f"cannot read: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise InputError(
+                shown, f"not a regular file ({_file_type(info.st_mode)}), not an image"
+            )
+        if info.st_size > MAX_FILE_BYTES:
+            raise InputError(
+                shown, f"file of {info.st_size} bytes, larger than {MAX_FILE_BYTES} bytes"
+            )
+        try:
+            data = fh.read(MAX_FILE_BYTES + 1)
+        except OSError as exc:
+            raise InputError(shown, f"cannot read: {exc.strerror or exc}") from None
+    if not data:
+        raise InputError(shown, "empty file (0 bytes)")
+    if len(data) > MAX_FILE_BYTES:
+        raise InputError(shown, f"file larger than {MAX_FILE_BYTES} bytes")
     return data
+
+
+def _not_regular(mode: int) -> str:
+    return f"not a regular file ({_file_type(mode)}), not an image"
+
+
+def _file_type(mode: int) -> str:
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    )
+    return next((name for test, name in kinds if test(mode)), "not a plain file")
+
+
+def header_size(data: bytes, source: str = "<bytes>") -> tuple[int, int]:
+    """Width and height an image file's header declares, read without decoding pixels.
+
+    Uses Pillow's header parsers for the formats qdcnn reads (PNG, JPEG, BMP, TIFF,
+    WebP, PPM/PGM), called directly so that no pixel data is touched.
+
+    Raises
+    ------
+    InputError
+        No parser recognises the header (naming ``source``).
+    """
+    from PIL import Image
+
+    Image.init()
+    prefix = data[:16]
+    for fmt in _HEADER_FORMATS:
+        factory, accept = Image.OPEN[fmt]
+        if accept is not None and not accept(prefix):
+            continue
+        try:
+            with warnings.catch_warnings():  # e.g. "Corrupt EXIF data": the decoder decides
+                warnings.simplefilter("ignore")
+                with factory(io.BytesIO(data), "") as im:
+                    width, height = im.size
+        except Exception:  # Pillow's parsers raise many types on bad headers: not this format
+            continue
+        return int(width), int(height)
+    raise InputError(source, _UNREADABLE)
 
 
 def _to_uint8(img: NDArray[np.generic], path: Path) -> NDArray[np.uint8]:
@@ -53,30 +169,39 @@ def _to_uint8(img: NDArray[np.generic], path: Path) -> NDArray[np.uint8]:
         return np.clip(f * scale + 0.5, 0, 255).astype(np.uint8)
     if img.dtype in (np.int8, np.int16, np.int32):
         return np.clip(img, 0, 255).astype(np.uint8)
-    raise InputError(path, f"unsupported pixel type {img.dtype}")
+    raise InputError(display_path(path), f"unsupported pixel type {img.dtype}")
 
 
 def _decode(path: Path) -> NDArray[np.generic]:
     data = _read_bytes(path)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    shown = display_path(path)
+    width, height = header_size(data, shown)
+    if width * height > MAX_PIXELS:
+        raise InputError(shown, f"image is {width}x{height}, larger than {MAX_PIXELS} pixels")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        reason = " ".join(str(exc).split())[-160:]
+        raise InputError(shown, f"{_UNREADABLE}: decoder error ({reason})") from None
     if img is None:
-        raise InputError(path, "not a readable image (corrupt or unsupported format)")
+        raise InputError(shown, _UNREADABLE)
     if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
-        raise InputError(path, f"image has an unusable shape {img.shape}")
+        raise InputError(shown, f"image has an unusable shape {img.shape}")
     if img.shape[0] * img.shape[1] > MAX_PIXELS:
         raise InputError(
-            path, f"image is {img.shape[1]}x{img.shape[0]}, larger than {MAX_PIXELS} pixels"
+            shown, f"image is {img.shape[1]}x{img.shape[0]}, larger than {MAX_PIXELS} pixels"
         )
     return img
 
 
-def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
+def read_image(path: PathArg) -> NDArray[np.uint8]:
     """Read an image file as RGB ``uint8`` of shape ``(H, W, 3)``.
 
     Parameters
     ----------
-    path : str or path-like
-        Any format OpenCV decodes (PNG, JPEG, BMP, TIFF, WebP, PPM/PGM).
+    path : str, bytes or path-like
+        A PNG, JPEG, BMP, TIFF, WebP or PPM/PGM file (OpenCV decodes it). ``bytes``
+        names that are not UTF-8 are accepted.
 
     Returns
     -------
@@ -86,9 +211,17 @@ def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     Raises
     ------
     InputError
-        Missing, empty, unreadable, corrupt or oversized files, naming the file.
+        Missing, empty, unreadable, corrupt or oversized files, and paths that are
+        not regular files (folders, FIFOs, devices), naming the file.
+
+    Notes
+    -----
+    Only regular files are opened (a FIFO or device with an image suffix is refused
+    without waiting on it). The image size is read from the file header first and
+    an image over :data:`MAX_PIXELS` pixels is refused without decoding it; decoder
+    errors become :class:`InputError`.
     """
-    p = Path(path)
+    p = as_path(path)
     img = _to_uint8(_decode(p), p)
     if img.ndim == 2:
         return np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
@@ -99,15 +232,16 @@ def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
     if channels == 4:
         return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
-    raise InputError(p, f"unsupported number of channels ({channels})")
+    raise InputError(display_path(p), f"unsupported number of channels ({channels})")
 
 
-def read_mask(path: str | os.PathLike[str]) -> NDArray[np.bool_]:
+def read_mask(path: PathArg) -> NDArray[np.bool_]:
     """Read a ground-truth mask as ``bool`` of shape ``(H, W)``, binarised at 128.
 
     Colour masks are converted to grey first; 16-bit masks are scaled to 8 bits.
+    Files are checked as in :func:`read_image`.
     """
-    p = Path(path)
+    p = as_path(path)
     img = _to_uint8(_decode(p), p)
     if img.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
@@ -155,16 +289,18 @@ class ImageListing:
     missing: list[InputError] = field(default_factory=list)
 
 
-def list_images(paths: Iterable[str | os.PathLike[str]], recursive: bool = False) -> ImageListing:
+def list_images(paths: Iterable[PathArg], recursive: bool = False) -> ImageListing:
     """Expand files and folders into the image files to process.
 
     Folders contribute their files with an image suffix (sorted by name); other
     files in them go to ``skipped``. A path given explicitly must exist and
-    carry an image suffix, or it is reported in ``missing``.
+    carry an image suffix, or it is reported in ``missing``. Names that are not
+    UTF-8 (``bytes`` paths, or such files inside a folder) are listed like any
+    other; messages show their odd bytes as ``\\xNN``.
     """
     out = ImageListing()
     for raw in paths:
-        p = Path(raw)
+        p = as_path(raw)
         if p.is_dir():
             children: Sequence[Path] = sorted(p.rglob("*") if recursive else p.iterdir())
             for child in children:
@@ -173,9 +309,12 @@ def list_images(paths: Iterable[str | os.PathLike[str]], recursive: bool = False
                 is_image = child.suffix.lower() in IMAGE_SUFFIXES
                 (out.images if is_image else out.skipped).append(child)
         elif not p.exists():
-            out.missing.append(InputError(p, "file not found"))
+            out.missing.append(InputError(display_path(p), "file not found"))
         elif p.suffix.lower() not in IMAGE_SUFFIXES:
-            out.missing.append(InputError(p, f"not an image file (suffix {p.suffix or 'none'!r})"))
+            suffix = display_path(p.suffix) if p.suffix else "none"
+            out.missing.append(
+                InputError(display_path(p), f"not an image file (suffix {suffix!r})")
+            )
         else:
             out.images.append(p)
     return out

@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn.config import LabelConfig
+from qdcnn.data.images import display_path
+from qdcnn.data.labels import DirectionLabels, SteeringUnit, label_directions, resolve_steering_unit
 from qdcnn.errors import InputError, ParameterError
+
+_LABELS = LabelConfig()
 
 
 @dataclass
@@ -25,7 +31,7 @@ class Recording:
     frames : list of Path
         Resolved centre-camera image paths; every one existed when loaded.
     steering : ndarray of float64, shape (N,)
-        Steering per frame in [-1, 1], negative = left.
+        Steering per frame in ``unit``, as recorded; negative = left.
     timestamps : ndarray of float64, shape (N,), or None
         Capture time per frame in seconds, ``None`` when the source has none.
     rows : ndarray of int64, shape (N,)
@@ -37,6 +43,8 @@ class Recording:
     left, right : list of (Path or None), or None
         Side-camera images per frame (``None`` entries where missing), or ``None``
         when the recording has no side-camera image at all.
+    unit : SteeringUnit
+        The unit of ``steering`` and how it was decided (``norm`` by default).
     """
 
     root: Path
@@ -48,6 +56,7 @@ class Recording:
     kind: str
     left: list[Path | None] | None = None
     right: list[Path | None] | None = None
+    unit: SteeringUnit = field(default_factory=SteeringUnit)
 
     def __post_init__(self) -> None:
         n = len(self.frames)
@@ -68,6 +77,26 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.frames)
+
+    def labels(
+        self,
+        threshold: float | None = None,
+        *,
+        window: int = _LABELS.window,
+        max_gap_s: float = _LABELS.max_gap_s,
+    ) -> DirectionLabels:
+        """Direction labels in this recording's unit (:func:`~qdcnn.data.labels.label_directions`).
+
+        ``threshold`` is in ``unit.unit``; ``None`` is that unit's default.
+        """
+        return label_directions(
+            self.steering,
+            self.timestamps,
+            unit=self.unit,
+            threshold=threshold,
+            window=window,
+            max_gap_s=max_gap_s,
+        )
 
     def subset(self, idx: Any) -> Recording:
         """Return the frames selected by ``idx`` (a slice, integer indices or a boolean mask).
@@ -95,24 +124,115 @@ class Recording:
             kind=self.kind,
             left=pick(self.left),
             right=pick(self.right),
+            unit=self.unit,
         )
 
 
-def parse_steering(text: str) -> tuple[float, None] | tuple[None, str]:
+def parse_steering(text: str, limit: float = 1.0) -> tuple[float, None] | tuple[None, str]:
     """Parse one steering value; return ``(value, None)`` or ``(None, reason)``.
 
-    A value must be a finite number in [-1, 1].
+    A value must be a finite number in ``[-limit, limit]``.
     """
     t = text.strip()
+    if len(t) > 64:
+        return None, f"steering of {len(t)} characters is not a number"
     try:
         value = float(t)
     except ValueError:
         return None, f"steering '{t}' is not a number"
     if not math.isfinite(value):
         return None, f"steering '{t}' is not finite"
-    if not -1.0 <= value <= 1.0:
-        return None, f"steering {t} is outside [-1, 1]"
+    if not -limit <= value <= limit:
+        return None, f"steering {t} is outside [{-limit:g}, {limit:g}]"
     return value, None
+
+
+@dataclass
+class LabelRow:
+    """One usable row of a label file, before duplicates and the unit are settled."""
+
+    row: int
+    frame: Path
+    value: float
+    text: str
+    left: Path | None = None
+    right: Path | None = None
+    stamp: float = math.nan
+
+
+@dataclass
+class LabelRows:
+    """The rows of one label file: the usable ones and the skipped ones with reasons.
+
+    Loaders :meth:`add` each usable row and :meth:`skip` each unusable one while
+    reading, then :meth:`finish` settles the steering unit, refuses values outside
+    it and drops repeated images.
+    """
+
+    source: str
+    strict: bool = False
+    entries: list[LabelRow] = field(default_factory=list)
+    skipped: list[tuple[int, str]] = field(default_factory=list)
+
+    def add(self, entry: LabelRow) -> None:
+        self.entries.append(entry)
+
+    def skip(self, row: int, reason: str) -> None:
+        self.skipped.append((row, reason))
+
+    def finish(
+        self,
+        steering_unit: str,
+        simulator_names: Callable[[Sequence[Path]], bool] | None = None,
+    ) -> tuple[list[LabelRow], SteeringUnit, list[InputError]]:
+        """Kept rows (file order), the steering unit, and every skipped row as an error.
+
+        The unit is ``steering_unit`` or, for ``"auto"``, inferred from the usable
+        rows (:func:`~qdcnn.data.labels.infer_steering_unit`); rows with values
+        beyond the unit's range are reported, then an image listed again is dropped
+        (the first row that is still usable keeps it) and reported. Errors are
+        sorted by row; with ``strict`` the first is raised.
+        """
+        frames = [e.frame for e in self.entries]
+        sim = bool(frames) and simulator_names is not None and simulator_names(frames)
+        values = [e.value for e in self.entries]
+        unit = resolve_steering_unit(steering_unit, values, simulator_names=sim)
+        in_range = []
+        for e in self.entries:
+            if abs(e.value) <= unit.limit:
+                in_range.append(e)
+            else:
+                suffix = "" if unit.unit == "norm" else f" ({unit.unit})"
+                self.skip(e.row, f"steering {e.text} is outside {_interval(unit.limit)}{suffix}")
+        kept = self._unique(in_range)
+        errors = [
+            InputError(f"{self.source}:row {row}", reason)
+            for row, reason in sorted(self.skipped, key=lambda item: item[0])
+        ]
+        if self.strict and errors:
+            raise errors[0]
+        return kept, unit, errors
+
+    def _unique(self, entries: list[LabelRow]) -> list[LabelRow]:
+        first: dict[Path, LabelRow] = {}
+        kept = []
+        for e in entries:
+            seen = first.get(e.frame)
+            if seen is None:
+                first[e.frame] = e
+                kept.append(e)
+                continue
+            differs = "" if seen.value == e.value else f" (steering {e.text}, not {seen.text})"
+            name = display_path(e.frame.name)
+            self.skip(
+                e.row,
+                f"image '{name}' listed again (first at row {seen.row}){differs}: dropped",
+            )
+        return kept
+
+
+def _interval(limit: float) -> str:
+    return f"[{-limit:g}, {limit:g}]"
 
 
 _DIGITS = re.compile(r"(\d+)")

@@ -26,6 +26,7 @@ from qdcnn import __version__
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
+from qdcnn.experiments import feature_cache
 from qdcnn.pipeline import GROUPINGS, FrameResult, process_frame
 from qdcnn.quantum.sampling import as_generator
 from qdcnn.vision.grouping import feature_names
@@ -120,11 +121,12 @@ def compute_features(
     """
     cfg = config or PipelineConfig()
     key = _cache_key(frames, cfg, groupings)
-    path = cache_dir() / f"features-{key}.npz"
-    if use_cache and path.is_file():
-        return _load(path, groupings)
+    path = feature_cache.entry_path(cache_dir(), key)
     n = len(frames)
     width = len(feature_names(cfg.grouping.extra_features))
+    cached = _load(path, groupings, n, width) if use_cache else None
+    if cached is not None:
+        return cached
     feats = {g: np.full((n, width), np.nan) for g in groupings}
     status = {g: np.full(n, "unreadable", dtype="<U10") for g in groupings}
     readable = np.zeros(n, bool)
@@ -158,28 +160,22 @@ def compute_features(
 
 
 def _save(path: Path, table: FeatureTable, groupings: Sequence[str]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    arrays: dict[str, NDArray[np.generic]] = {
-        "readable": table.readable,
-        "seconds": np.array(table.seconds_per_frame),
-    }
-    for g in groupings:
-        arrays[f"features/{g}"] = table.features[g]
-        arrays[f"status/{g}"] = table.status[g]
-    arrays["failures"] = np.array([json.dumps(f.to_dict()) for f in table.failures], dtype=str)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]
-    tmp.replace(path)
+    entry = feature_cache.CachedFeatures(
+        table.features, table.status, table.readable, table.failures, table.seconds_per_frame
+    )
+    feature_cache.write_entry(path, entry, groupings)
 
 
-def _load(path: Path, groupings: Sequence[str]) -> FeatureTable:
-    with np.load(path) as data:
-        failures = [Failure(**json.loads(s)) for s in data["failures"]]
-        return FeatureTable(
-            {g: data[f"features/{g}"] for g in groupings},
-            {g: data[f"status/{g}"] for g in groupings},
-            data["readable"],
-            failures,
-            float(data["seconds"]),
-            cached=True,
-        )
+def _load(path: Path, groupings: Sequence[str], n: int, width: int) -> FeatureTable | None:
+    """The cached table, or ``None`` for a miss (a bad entry is reported and removed)."""
+    entry = feature_cache.read_entry(path, groupings, n, width)
+    if entry is None:
+        return None
+    return FeatureTable(
+        entry.features,
+        entry.status,
+        entry.readable,
+        entry.failures,
+        entry.seconds_per_frame,
+        cached=True,
+    )

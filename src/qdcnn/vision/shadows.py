@@ -20,9 +20,8 @@ default). A block is shadow when every feature's one-qubit UU-dagger test passes
 
 from __future__ import annotations
 
-import json
 import os
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -44,6 +43,7 @@ from qdcnn.quantum.uu_dagger import (
     ry_state_table,
     value_to_angle,
 )
+from qdcnn.vision.shadow_model_file import read_shadow_model, write_shadow_model
 
 FEATURES = ("intensity", "chromaticity")
 
@@ -504,39 +504,48 @@ class ShadowModel:
         return f"{len(parts)} components: " + "; ".join(parts)
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        data = {"kind": "qdcnn-shadow-model", **asdict(self)}
-        if not self.is_multi:  # paper models keep the original file layout
-            for key in ("features", "centroids", "thresholds"):
-                data.pop(key)
-        p.write_text(json.dumps(data, indent=2))
-        return p
+        """Write the model as a JSON model file (format version 2), atomically.
+
+        See :mod:`qdcnn.vision.shadow_model_file` for the layout.
+        """
+        fields: dict[str, Any] = {
+            "feature": self.feature,
+            "centroid": self.centroid,
+            "threshold": self.threshold,
+            "provenance": self.meta,
+        }
+        if self.is_multi:
+            fields.update(
+                features=list(self.features),
+                centroids=[list(c) for c in self.centroids],
+                thresholds=[list(t) for t in self.thresholds],
+            )
+        return write_shadow_model(path, fields)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> ShadowModel:
-        p = Path(path)
-        try:
-            data = json.loads(p.read_text())
-        except FileNotFoundError:
-            raise InputError(p, "model file not found") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(p, f"not a qdcnn shadow model (unreadable JSON: {exc})") from None
-        if not isinstance(data, dict) or data.get("kind") != "qdcnn-shadow-model":
-            raise InputError(p, "not a qdcnn shadow model (missing kind 'qdcnn-shadow-model')")
+        """Read a model written by :meth:`save` (format versions 1 and 2).
+
+        Raises
+        ------
+        InputError
+            Any unusable file or field, in one line naming the file
+            (:func:`~qdcnn.vision.shadow_model_file.read_shadow_model`).
+        """
+        fields = read_shadow_model(path)
         try:
             model = cls(
-                str(data["feature"]),
-                float(data["centroid"]),
-                float(data["threshold"]),
-                dict(data.get("meta", {})),
-                tuple(str(f) for f in data.get("features", ())),
-                tuple(tuple(float(v) for v in c) for c in data.get("centroids", ())),
-                tuple(tuple(float(v) for v in t) for t in data.get("thresholds", ())),
+                fields["feature"],
+                fields["centroid"],
+                fields["threshold"],
+                dict(fields["provenance"]),
+                fields.get("features", ()),
+                fields.get("centroids", ()),
+                fields.get("thresholds", ()),
             )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(p, f"shadow model is missing or has a bad field: {exc}") from None
-        ShadowConfig(feature=model.feature, centroid=model.centroid, threshold=model.threshold)  # type: ignore[arg-type]
+            ShadowConfig(feature=model.feature, centroid=model.centroid, threshold=model.threshold)  # type: ignore[arg-type]
+        except ParameterError as exc:
+            raise InputError(path, f"bad field: {exc}") from None
         return model
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from qdcnn.batch import Failure, run_batch
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.batch import Failure, run_batch
 
 
 def work(x: int) -> int:
