@@ -367,16 +367,37 @@ class VQCConfig:
 
 @dataclass(frozen=True)
 class LabelConfig:
-    """Direction labels from recorded steering (NOTES 6 and 9)."""
+    """Direction labels from recorded steering (NOTES 6 and 9).
+
+    Attributes
+    ----------
+    window : int
+        Steering is smoothed over +-``window`` frames (never across a time gap).
+    max_gap_s : float
+        A timestamp gap longer than this splits the smoothing.
+    threshold : float or None
+        ``|smoothed steering|`` below this is straight, in the recording's steering unit;
+        ``None`` takes the unit's default (0.05 for the simulator's [-1, 1]; the same
+        road-wheel angle in radians or degrees: :data:`qdcnn.data.labels.DEFAULT_THRESHOLDS`).
+    steering_unit : {"auto", "norm", "rad", "deg"}
+        Unit of the recorded steering; ``"auto"`` decides from the recording
+        (:func:`qdcnn.data.labels.infer_steering_unit`).
+    """
 
     window: int = 5
     max_gap_s: float = 1.0
-    threshold: float = 0.05
+    threshold: float | None = None
+    steering_unit: str = "auto"
 
     def __post_init__(self) -> None:
         check_int("labels.window", self.window, 0, 10_000)
         check_float("labels.max_gap_s", self.max_gap_s, 0.0, 1e6, open_lo=True)
-        check_float("labels.threshold", self.threshold, 0.0, 1e6)
+        if self.threshold is not None:
+            check_float("labels.threshold", self.threshold, 0.0, 1e6)
+        if self.steering_unit not in ("auto", "norm", "rad", "deg"):
+            raise ParameterError(
+                "steering_unit", self.steering_unit, "one of 'auto', 'norm', 'rad', 'deg'"
+            )
 
 
 @dataclass(frozen=True)
@@ -445,6 +466,17 @@ class PipelineConfig:
         channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
         lanes = replace(self.lanes, edge_channels=channels, remove_shadows=bool(shadow_removal))
         return replace(self, lanes=lanes, grouping=GroupingConfig.for_features(features))
+
+    def with_labels(
+        self, *, steering_unit: str = "auto", threshold: float | None = None
+    ) -> PipelineConfig:
+        """This config with the recording's steering unit and the label threshold set.
+
+        The options ``--steering-unit`` and ``--label-threshold`` (``None``: the unit's
+        default threshold).
+        """
+        labels = replace(self.labels, steering_unit=steering_unit, threshold=threshold)
+        return replace(self, labels=labels)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the settings as plain JSON-serialisable values."""

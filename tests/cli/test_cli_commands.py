@@ -412,3 +412,28 @@ def test_simple_mistakes_are_one_line_errors_not_tracebacks(args: list[str], mes
     res = runner.invoke(app, args)
     assert res.exit_code == 2, res.output
     assert message in res.stderr and "Traceback" not in res.stderr
+
+
+def test_steering_in_degrees_is_recognised_and_said(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    from qdcnn.data.synthetic import generate_drive
+
+    rec = tmp_path / "rec"
+    (rec / "IMG").mkdir(parents=True)
+    scenes = generate_drive("track2", 120, seed=3)
+    lines = []
+    for i, scene in enumerate(scenes):
+        write_image(rec / "IMG" / f"{i:06d}.png", scene.image)
+        wheel_deg = scene.steering * 25 * 15  # road-wheel degrees times a 15:1 steering ratio
+        lines.append(f"IMG/{i:06d}.png,,,{wheel_deg:.1f},0,0,0")
+    (rec / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    args = ["evaluate", "--data", f"udacity:{rec}", "--method", "image-split-uu", "--folds", "2"]
+    res = runner.invoke(app, [*args, "--json"])
+    assert res.exit_code == 0, res.stderr
+    labels = json.loads(res.stdout.splitlines()[0])["labels"]
+    assert labels["steering_unit"] == "deg" and labels["label_threshold"] == 18.75
+    res = runner.invoke(app, [*args, "--steering-unit", "rad", "--label-threshold", "0.5"])
+    assert res.exit_code == 2 and "is outside" in res.stderr  # degrees read as radians
+    res = runner.invoke(app, [*args, "--label-threshold", "5"])
+    assert res.exit_code == 0, res.stderr
+    assert "labels: steering in deg" in res.stdout and "threshold 5 deg (given)" in res.stdout

@@ -51,13 +51,29 @@ ThreadsOpt = Annotated[
 ]
 
 
+UnitOpt = Annotated[
+    str, typer.Option(help="Unit of the recorded steering: auto | norm ([-1, 1]) | rad | deg.")
+]
+ThresholdOpt = Annotated[
+    float | None,
+    typer.Option(help="Label threshold in the steering unit (default: the unit's own, 0.05 norm)."),
+]
+
+
 def pipeline_config(
-    lanes: str, seed: int, features: str, edges: str, shadow_removal: bool
+    lanes: str,
+    seed: int,
+    features: str,
+    edges: str,
+    shadow_removal: bool,
+    steering_unit: str = "auto",
+    label_threshold: float | None = None,
 ) -> PipelineConfig:
-    """The config of the lane options shared by ``evaluate`` and ``train-direction``."""
+    """The config of the lane and label options shared by ``evaluate`` and ``train-direction``."""
     if lanes not in ("udacity", "paper"):
         raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
     base = PipelineConfig.preset(lanes, seed=seed)
+    base = base.with_labels(steering_unit=steering_unit, threshold=label_threshold)
     return base.with_lane_options(features=features, edges=edges, shadow_removal=shadow_removal)
 
 
@@ -86,14 +102,19 @@ def evaluate_cmd(
     edges: EdgesOpt = "grey",
     shadow_removal: ShadowRemovalOpt = True,
     threads: ThreadsOpt = None,
+    steering_unit: UnitOpt = "auto",
+    label_threshold: ThresholdOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     try:
+        config = pipeline_config(
+            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold
+        )
         spec = EvaluationSpec(
             data,
             method,
-            pipeline_config(lanes, seed, features, edges, shadow_removal),
+            config,
             folds,
             gap,
             inner_folds,
@@ -107,6 +128,10 @@ def evaluate_cmd(
         emit({"summary": True, "failures": [f.to_dict() for f in result.failures]})
     elif not as_json:
         out.print(_evaluation_table(result))
+        balance = ", ".join(f"{k} {v}" for k, v in result.labels["class_balance"].items())
+        out.print(
+            f"{result.labels['description']}; classes: {balance}", markup=False, soft_wrap=True
+        )
     raise typer.Exit(result.exit_code)
 
 
@@ -150,6 +175,8 @@ def train_direction_cmd(
     features: FeaturesOpt = "slopes",
     edges: EdgesOpt = "grey",
     shadow_removal: ShadowRemovalOpt = True,
+    steering_unit: UnitOpt = "auto",
+    label_threshold: ThresholdOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it.
@@ -157,11 +184,14 @@ def train_direction_cmd(
     Hyperparameters are chosen by the inner contiguous cross-validation evaluate uses.
     """
     try:
+        config = pipeline_config(
+            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold
+        )
         spec = TrainDirectionSpec(
             data,
             out_file,
             method,
-            pipeline_config(lanes, seed, features, edges, shadow_removal),
+            config,
             inner_folds,
             gap,
             training_options(epochs, weights, threads, progress=not as_json),

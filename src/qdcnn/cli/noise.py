@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.cli.direction import ThresholdOpt, UnitOpt
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.circuit import CircuitInspection, CircuitSpec, inspect_circuit
@@ -101,6 +102,8 @@ def noise_sweep_cmd(
     plot: PlotOpt = None,
     seed: SeedOpt = 0,
     cache: CacheOpt = True,
+    steering_unit: UnitOpt = "auto",
+    label_threshold: ThresholdOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
@@ -115,10 +118,13 @@ def noise_sweep_cmd(
             raise ParameterError(
                 "lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)"
             )
+        config = PipelineConfig.preset(lanes).with_labels(
+            steering_unit=steering_unit, threshold=label_threshold
+        )
         spec = NoiseSweepSpec(
             data, methods, channels, p, phase_damping, grouping, train_under_noise, shots,
-            readout, folds, gap, inner_folds, PipelineConfig.preset(lanes), shadow_set,
-            shadow_frames, plot, seed, cache, shadow_thresholds,
+            readout, folds, gap, inner_folds, config, shadow_set, shadow_frames, plot, seed,
+            cache, shadow_thresholds,
         )  # fmt: skip
         run = run_noise_sweep(spec, CliReporter(False))
     except QdcnnError as exc:

@@ -18,10 +18,12 @@ from numpy.typing import NDArray
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import LabelConfig
 from qdcnn.data.images import read_image
-from qdcnn.data.labels import direction_labels
+from qdcnn.data.labels import DirectionLabels, SteeringUnit, label_directions
 from qdcnn.errors import InputError, ParameterError
 
 DEFAULT_SYNTHETIC_FRAMES = 600
+#: Most synthetic frames a dataset spec renders into memory (about 1.5 GB at 320x160).
+MAX_SYNTHETIC_FRAMES = 10_000
 
 
 @dataclass
@@ -52,6 +54,7 @@ class FrameSet:
     problems: list[InputError] = field(default_factory=list)
     images: list[NDArray[np.uint8]] | None = None
     paths: list[Path] | None = None
+    unit: SteeringUnit = field(default_factory=SteeringUnit)
 
     def __len__(self) -> int:
         return len(self.sources)
@@ -64,22 +67,31 @@ class FrameSet:
         return read_image(self.paths[i])
 
     def labels(self, config: LabelConfig | None = None) -> NDArray[np.int64]:
-        """Direction labels from steering smoothed as ``config`` says."""
+        """Direction labels from steering smoothed as ``config`` says (see :meth:`label_info`)."""
+        return self.label_info(config).labels
+
+    def label_info(self, config: LabelConfig | None = None) -> DirectionLabels:
+        """Labels with the unit and threshold that produced them.
+
+        The steering unit is the one decided when the recording was loaded; the threshold
+        is ``config.threshold`` in that unit, or the unit's default when it is ``None``.
+        """
         cfg = config or LabelConfig()
-        return direction_labels(
+        return label_directions(
             self.steering,
             self.timestamps,
+            unit=self.unit,
+            threshold=cfg.threshold,
             window=cfg.window,
             max_gap_s=cfg.max_gap_s,
-            threshold=cfg.threshold,
         )
 
     def fingerprint(self) -> str:
         """Identity of the data for caches: spec, frame names, sizes and modification times."""
-        h = hashlib.sha256(self.spec.encode())
+        h = hashlib.sha256(os.fsencode(self.spec))
         h.update(self.steering.tobytes())
         for src in self.sources:
-            h.update(src.encode())
+            h.update(os.fsencode(src))
             if self.paths is not None:
                 try:
                     st = os.stat(src)
@@ -97,11 +109,14 @@ def parse_spec(spec: str) -> tuple[str, str]:
     return kind, value
 
 
-def load_frameset(spec: str, *, seed: int = 0) -> FrameSet:
+def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> FrameSet:
     """Load a dataset from its specification.
 
     ``synthetic:PRESET[:N]`` renders a recording-like drive of ``N`` frames
-    (default 600) with :func:`qdcnn.data.synthetic.generate_drive`.
+    (default 600, at most :data:`MAX_SYNTHETIC_FRAMES`, held in memory) with
+    :func:`qdcnn.data.synthetic.generate_drive`; its steering is in [-1, 1]. Recordings
+    are read lazily; ``steering_unit`` says the unit of their steering (``"auto"``:
+    decided from the recording, :func:`qdcnn.data.labels.infer_steering_unit`).
     """
     kind, value = parse_spec(spec)
     if kind == "synthetic":
@@ -114,8 +129,14 @@ def load_frameset(spec: str, *, seed: int = 0) -> FrameSet:
             n = int(count) if count else DEFAULT_SYNTHETIC_FRAMES
         except ValueError:
             raise ParameterError("data", spec, "synthetic:PRESET[:N] with an integer N") from None
-        if not 10 <= n <= 100_000:
-            raise ParameterError("data", spec, "between 10 and 100000 synthetic frames")
+        if not 10 <= n <= MAX_SYNTHETIC_FRAMES:
+            raise ParameterError(
+                "data",
+                spec,
+                f"between 10 and {MAX_SYNTHETIC_FRAMES} synthetic frames (they are held in "
+                "memory; for longer drives write them with 'qdcnn synth --n N --out DIR' and "
+                "use udacity:DIR/udacity)",
+            )
         scenes = generate_drive(preset, n, seed=seed)
         times = np.arange(n) / 10.0
         return FrameSet(
@@ -125,11 +146,13 @@ def load_frameset(spec: str, *, seed: int = 0) -> FrameSet:
             times,
             [f"synthetic:{preset}:seed{seed}:frame{i}" for i in range(n)],
             images=[s.image for s in scenes],
+            unit=SteeringUnit("norm", "norm", "the synthetic generator steers in [-1, 1]"),
         )
     from qdcnn.data.carla import load_carla
     from qdcnn.data.udacity import load_udacity
 
-    rec = load_udacity(value) if kind == "udacity" else load_carla(value)
+    loader = load_udacity if kind == "udacity" else load_carla
+    rec = loader(value, steering_unit=steering_unit)
     return FrameSet(
         Path(value).resolve().name,
         spec,
@@ -138,6 +161,7 @@ def load_frameset(spec: str, *, seed: int = 0) -> FrameSet:
         [str(p) for p in rec.frames],
         list(rec.problems),
         paths=list(rec.frames),
+        unit=rec.unit,
     )
 
 

@@ -42,10 +42,12 @@ STEERING_UNITS: tuple[str, ...] = ("auto", "norm", "rad", "deg")
 SIMULATOR_MAX_ROAD_WHEEL_DEG = 25.0
 #: Steering-wheel turn per road-wheel turn of a typical passenger car.
 STEERING_RATIO = 15.0
-_WHEEL_DEG = _DEFAULTS.threshold * SIMULATOR_MAX_ROAD_WHEEL_DEG * STEERING_RATIO  # 18.75
+#: The simulator's label threshold on steering in [-1, 1] (1.25 degrees of road wheel).
+NORM_THRESHOLD = 0.05
+_WHEEL_DEG = NORM_THRESHOLD * SIMULATOR_MAX_ROAD_WHEEL_DEG * STEERING_RATIO  # 18.75
 #: Default label threshold per unit: the same 1.25 degree road-wheel angle in each.
 DEFAULT_THRESHOLDS: dict[str, float] = {
-    "norm": _DEFAULTS.threshold,
+    "norm": NORM_THRESHOLD,
     "rad": math.radians(_WHEEL_DEG),
     "deg": _WHEEL_DEG,
 }

@@ -301,7 +301,9 @@ def train_direction(
     method = get_method(spec.method)
     if method.inputs == "lanes":
         assert method.grouping is not None
-        frames = load_frameset(spec.data, seed=spec.config.seed)
+        frames = load_frameset(
+            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
+        )
         with report.progress(len(frames), f"lane features ({frames.name})") as advance:
             lanes = load_lane_data(
                 frames, spec.config, (method.grouping,), use_cache=spec.use_cache, on_frame=advance
@@ -309,7 +311,9 @@ def train_direction(
         inputs: Any = lanes.features(method.grouping)
         y, failures = lanes.y, lanes.failures
     else:
-        frames = load_frameset(spec.data, seed=spec.config.seed)
+        frames = load_frameset(
+            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
+        )
         images, readable, unreadable = stack_images(frames)
         inputs, y = images[readable], frames.labels(spec.config.labels)[readable]
         failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable

@@ -181,6 +181,7 @@ class EvaluationResult:
     results: list[MethodResult] = field(default_factory=list)
     failures: list[Failure] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    labels: dict[str, Any] = field(default_factory=dict)
 
     @property
     def exit_code(self) -> int:
@@ -195,6 +196,7 @@ class EvaluationResult:
             "results": [r.to_dict() for r in self.results],
             "failures": [f.to_dict() for f in self.failures],
             "notes": self.notes,
+            "labels": self.labels,
         }
 
 
@@ -208,7 +210,9 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
     )
     for note in notes:
         report.note(note)
-    frames = load_frameset(spec.data, seed=spec.config.seed)
+    frames = load_frameset(
+        spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
+    )
     ContiguousKFold(spec.folds, spec.gap).check(len(frames))
     result = EvaluationResult(
         frames.name,
@@ -217,12 +221,14 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
         notes=notes,
     )
     _add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
+    result.labels = label_summary(frames, spec.config, report)
     lane_methods = [m for m in methods if m.inputs == "lanes"]
     if lane_methods:
         lanes = _lane_data(spec, frames, lane_methods, report)
         _add_failures(result, lanes.table.failures, report)
         for m in lane_methods:
             res = _evaluate_lane_method(spec, m, lanes)
+            res.extra["labels"] = result.labels
             result.results.append(res)
             report.result(res.to_dict())
     for m in (m for m in methods if m.inputs == "frames"):
@@ -236,9 +242,18 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
             gap=spec.gap,
         )
         _add_failures(result, failures, report)
+        res.extra["labels"] = result.labels
         result.results.append(res)
         report.result(res.to_dict())
     return result
+
+
+def label_summary(frames: FrameSet, config: PipelineConfig, report: Reporter) -> dict[str, Any]:
+    """How the labels were made (unit, threshold, classes); a note when the unit is guessed."""
+    info = frames.label_info(config.labels)
+    if info.unit.assumed:
+        report.note(f"{frames.name}: steering unit {info.unit.describe()}")
+    return {**info.to_dict(), "class_balance": info.counts(), "description": info.describe()}
 
 
 def _add_failures(result: EvaluationResult, failures: list[Failure], report: Reporter) -> None:

@@ -83,7 +83,11 @@ def load_lane_data(
         classes (a constant guess would score 1.0).
     """
     cfg = config or PipelineConfig()
-    frames = data if isinstance(data, FrameSet) else load_frameset(data, seed=seed)
+    frames = (
+        data
+        if isinstance(data, FrameSet)
+        else load_frameset(data, seed=seed, steering_unit=cfg.labels.steering_unit)
+    )
     labels = frames.labels(cfg.labels)
     table = compute_features(
         frames, cfg, tuple(sorted(set(groupings))), use_cache=use_cache, on_frame=on_frame

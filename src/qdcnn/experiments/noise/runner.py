@@ -217,7 +217,9 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
         assert spec.data is not None
         from qdcnn.data.frames import load_frameset
 
-        frames = load_frameset(spec.data, seed=spec.seed)
+        frames = load_frameset(
+            spec.data, seed=spec.seed, steering_unit=spec.config.labels.steering_unit
+        )
         ContiguousKFold(spec.folds, spec.gap).check(len(frames))  # before any work
         targets = sweep_targets(direction, spec.groupings)
         inputs, y, bad = _direction_inputs(spec, cfg, frames, targets, report)
