@@ -1,0 +1,760 @@
+"""A real device's calibrated noise, read offline from an IBM fake backend.
+
+:meth:`DeviceNoise.from_backend` reads the calibration that ships with
+``qiskit_ibm_runtime.fake_provider`` (``FakeManilaV2`` and the others; no network) and
+builds the errors qiskit-aer's ``NoiseModel.from_backend`` builds, with qiskit-aer's own
+functions (``basic_device_gate_errors`` and ``basic_device_readout_errors``):
+
+* after every native gate (``sx``, ``x``, ``cx``) on its physical qubit(s): a depolarizing
+  error composed with thermal relaxation from the qubits' ``T1``, ``T2`` (truncated to
+  ``2 T1``) and the gate's duration, the depolarizing strength chosen so that the
+  composition has the calibrated gate error; two-qubit gates get a two-qubit
+  depolarizing error and one relaxation per qubit. ``rz`` is virtual: zero duration, no
+  error (as in the calibration and in Aer's model);
+* at measurement, each qubit's readout confusion matrix. By default it is asymmetric,
+  ``P(1|0) = prob_meas1_prep0`` and ``P(0|1) = prob_meas0_prep1`` from the backend's
+  properties (what the fake backend's own ``run`` simulates); ``readout="symmetric"``
+  uses the target's single readout error for both, which is what
+  ``NoiseModel.from_backend(backend)`` builds.
+
+Each error becomes Kraus operators (``qiskit.quantum_info.Kraus``), applied by qdcnn's
+batched simulators through the :class:`qdcnn.quantum.noise.GateNoise` protocol.
+
+Running a qdcnn circuit on a device (:meth:`DeviceNoise.prepare`)
+-----------------------------------------------------------------
+*Native gates.* Every gate is rewritten into ``rz``, ``sx``, ``x``, ``cx`` with the same
+rules Qiskit's transpiler applies at ``optimization_level=0`` (checked in the tests), so
+the noisy gates are the ones a transpiled circuit has; angles stay per-circuit arrays (one
+rewrite for the whole batch, no per-circuit transpile); ``rz`` gates next to each other
+on a qubit are merged (they are noise-free), and global phases are dropped:
+
+=============  ==========================================================
+qdcnn gate     native gates, in time order
+=============  ==========================================================
+``rz(a)``      ``rz(a)``; ``p(a)`` the same (a global phase apart)
+``ry(a)``      ``sx, rz(a + pi), sx, rz(3 pi)``
+``rx(a)``      ``rz(pi/2), sx, rz(a + pi), sx, rz(5 pi/2)``
+``h``          ``rz(pi/2), sx, rz(pi/2)``
+``x``, ``sx``  themselves; ``y``: ``rz(pi), x``; ``z``: ``rz(pi)``
+``cx(c, t)``   ``cx`` if the device couples ``c -> t``; else ``H H cx(t, c) H H``
+``cz(c, t)``   ``h(t), cx(c, t), h(t)``
+=============  ==========================================================
+
+*Layout.* Logical qubit ``i`` runs on physical qubit ``layout[i]``. By default the layout is
+the lexicographically smallest list of physical qubits in which every ``cx`` of the circuit
+is between coupled qubits and each qubit with no ``cx`` partner among the lower-numbered
+ones is coupled to the previous qubit; so a circuit whose ``cx`` gates form a chain (the
+VQC: ``[0, 1]``) or none (the UU-dagger circuit: ``[0]``) gets the first chain of the
+device, counted from qubit 0, and a ring of ``cx`` gets a ring when the device has one
+(``FakeMelbourneV2`` has squares). When no layout couples every ``cx`` (a 4-qubit CNOT ring
+on a line device such as ``FakeManilaV2``), the default is the first chain and the
+uncoupled ``cx`` is an error, unless ``route="swap"``: it is then run by SWAPs (three
+``cx`` each) along the shortest path inside the layout, the ``cx``, and the SWAPs undone,
+so the circuit keeps its qubit order and pays the noise of every extra ``cx``. Qiskit's
+router would permute qubits instead of undoing; that choice is not modelled.
+
+What device noise leaves out: crosstalk between simultaneous gates and spectator qubits,
+leakage out of the qubit space, non-Markovian (drifting, correlated) noise, coherent
+over-rotation errors, idle relaxation of qubits waiting for others (the model adds no
+noise to qubits a gate does not touch; ``delay`` is not used), state-preparation error
+and measurement-induced dephasing, calibration drift since the snapshot was taken, and
+queueing and run-time (see :mod:`qdcnn.quantum.hardware_time` for time estimates).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from itertools import pairwise
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from qdcnn._optional import require
+from qdcnn.errors import ParameterError
+from qdcnn.quantum.circuits import CircuitBatch, Gate
+from qdcnn.quantum.noise import Channel, Kraus, NoiseSpec
+
+#: the native gates qdcnn circuits are rewritten into
+NATIVE_GATES: tuple[str, ...] = ("rz", "sx", "x", "cx")
+ROUTES: tuple[str, ...] = ("none", "swap")
+READOUT_MODELS: tuple[str, ...] = ("asymmetric", "symmetric", "none")
+#: tried placements before the default layout gives up looking for one that couples every cx
+LAYOUT_SEARCH_BUDGET = 200_000
+
+_TWO_QUBIT = frozenset({"cx", "cz"})
+
+
+def available_backends() -> list[str]:
+    """Names of the offline fake backends of ``qiskit_ibm_runtime.fake_provider``."""
+    fake_provider = require("qiskit_ibm_runtime", "device noise").fake_provider
+    from qiskit_ibm_runtime.fake_provider.fake_backend import FakeBackendV2
+
+    return sorted(
+        name
+        for name in dir(fake_provider)
+        if isinstance(cls := getattr(fake_provider, name), type)
+        and issubclass(cls, FakeBackendV2)
+        and cls is not FakeBackendV2
+    )
+
+
+def _backend_class_name(name: str) -> str:
+    names = available_backends()
+    by_lower = {n.lower(): n for n in names}
+    if name.lower() not in by_lower:
+        raise ParameterError("device", name, f"an IBM fake backend, one of {', '.join(names)}")
+    return by_lower[name.lower()]
+
+
+@dataclass(frozen=True, eq=False)
+class DeviceCalibration:
+    """A fake backend's calibration and the errors built from it (physical qubits).
+
+    Attributes
+    ----------
+    name : str
+        Class name in ``qiskit_ibm_runtime.fake_provider``, e.g. ``FakeManilaV2``.
+    num_qubits : int
+        Physical qubits of the device.
+    coupling : frozenset of (int, int)
+        Directed pairs ``(control, target)`` that have a native ``cx``.
+    t1, t2 : tuple of float or None
+        Per physical qubit, in seconds (as calibrated; the model truncates ``T2`` to
+        ``2 T1``).
+    durations, gate_errors : dict
+        ``(gate, physical qubits) -> seconds`` and ``-> error`` (1 - average gate fidelity)
+        for the native gates.
+    readout_p1_given_0, readout_p0_given_1 : tuple of float
+        Per physical qubit, the readout errors the model uses.
+    channels : dict
+        ``(gate, physical qubits) -> Kraus operators`` applied after that gate, the
+        first qubit the least significant bit of the operators.
+    readout : dict
+        ``physical qubit -> A[measured, prepared]``.
+    aer_errors : dict
+        The same gate errors as qiskit-aer ``QuantumError`` objects (for the Aer backend).
+    backend : object
+        The fake backend instance.
+    """
+
+    name: str
+    num_qubits: int
+    coupling: frozenset[tuple[int, int]]
+    t1: tuple[float | None, ...]
+    t2: tuple[float | None, ...]
+    durations: dict[tuple[str, tuple[int, ...]], float]
+    gate_errors: dict[tuple[str, tuple[int, ...]], float]
+    readout_p1_given_0: tuple[float, ...]
+    readout_p0_given_1: tuple[float, ...]
+    channels: dict[tuple[str, tuple[int, ...]], Kraus] = field(repr=False)
+    readout: dict[int, NDArray[np.float64]] = field(repr=False)
+    aer_errors: dict[tuple[str, tuple[int, ...]], Any] = field(repr=False)
+    backend: Any = field(repr=False)
+
+    def neighbours(self, q: int) -> list[int]:
+        """Physical qubits coupled to ``q`` in either direction, ascending."""
+        return sorted(
+            {b for a, b in self.coupling if a == q} | {a for a, b in self.coupling if b == q}
+        )
+
+    def coupled(self, a: int, b: int) -> bool:
+        """Whether a ``cx`` exists between ``a`` and ``b`` in either direction."""
+        return (a, b) in self.coupling or (b, a) in self.coupling
+
+    def qubit_table(self, qubits: tuple[int, ...] | None = None) -> list[dict[str, Any]]:
+        """One row per physical qubit: T1, T2 (us), sx error and duration (ns), readout errors."""
+        rows = []
+        for q in range(self.num_qubits) if qubits is None else qubits:
+            t1, t2 = self.t1[q], self.t2[q]
+            rows.append(
+                {
+                    "qubit": q,
+                    "t1_us": None if t1 is None else t1 * 1e6,
+                    "t2_us": None if t2 is None else t2 * 1e6,
+                    "sx_error": self.gate_errors.get(("sx", (q,))),
+                    "sx_ns": _ns(self.durations.get(("sx", (q,)))),
+                    "readout_p1_given_0": self.readout_p1_given_0[q],
+                    "readout_p0_given_1": self.readout_p0_given_1[q],
+                }
+            )
+        return rows
+
+
+def _ns(seconds: float | None) -> float | None:
+    return None if seconds is None else seconds * 1e9
+
+
+def _kraus_of(error: Any) -> Kraus:
+    info = require("qiskit", "device noise").quantum_info
+    ops = np.ascontiguousarray(np.stack(info.Kraus(error).data), dtype=np.complex128)
+    ops.setflags(write=False)
+    return ops
+
+
+def _readout_errors(backend: Any, model: str) -> list[tuple[list[int], Any]]:
+    from qiskit_aer.noise.device.models import basic_device_readout_errors
+
+    if model == "none":
+        return []
+    if model == "asymmetric":
+        properties = backend.properties()
+        if properties is not None:
+            return list(basic_device_readout_errors(properties=properties))
+    return list(basic_device_readout_errors(target=backend.target))
+
+
+@lru_cache(maxsize=16)
+def load_calibration(
+    name: str,
+    readout: str = "asymmetric",
+    gate_error: bool = True,
+    thermal_relaxation: bool = True,
+) -> DeviceCalibration:
+    """Read fake backend ``name``'s calibration and build its errors (cached; read-only).
+
+    Raises
+    ------
+    ParameterError
+        For an unknown backend (the message lists them) or one whose two-qubit gate is
+        not ``cx`` (``ecr`` and ``cz`` devices are not supported yet).
+    """
+    if readout not in READOUT_MODELS:
+        raise ParameterError("readout", readout, f"one of {', '.join(READOUT_MODELS)}")
+    class_name = _backend_class_name(name)
+    require("qiskit_aer", "device noise")
+    from qiskit_aer.noise.device.models import basic_device_gate_errors
+
+    fake_provider = require("qiskit_ibm_runtime", "device noise").fake_provider
+    backend = getattr(fake_provider, class_name)()
+    target = backend.target
+    ops = set(target.operation_names)
+    missing = [g for g in ("rz", "sx", "x") if g not in ops]
+    two_qubit = sorted(ops & {"cx", "ecr", "cz"})
+    if missing or (backend.num_qubits > 1 and "cx" not in ops):
+        raise ParameterError(
+            "device",
+            class_name,
+            f"a backend with native rz, sx, x and cx (this one has {', '.join(two_qubit) or 'no'} "
+            "two-qubit gate); ecr and cz devices are not supported yet",
+        )
+    errors = basic_device_gate_errors(
+        target=target, gate_error=gate_error, thermal_relaxation=thermal_relaxation
+    )
+    aer_errors = {(g, tuple(q)): e for g, q, e in errors if g in NATIVE_GATES}
+    durations: dict[tuple[str, tuple[int, ...]], float] = {}
+    gate_errs: dict[tuple[str, tuple[int, ...]], float] = {}
+    for g in NATIVE_GATES:
+        for qargs, prop in target[g].items() if g in ops else ():
+            if prop is not None and qargs is not None:
+                durations[(g, tuple(qargs))] = float(prop.duration or 0.0)
+                gate_errs[(g, tuple(qargs))] = float(prop.error or 0.0)
+    coupling = (
+        frozenset(tuple(q) for q in target["cx"] if q is not None) if "cx" in ops else frozenset()
+    )
+    readout_mats = {
+        int(q[0]): np.asarray(err.probabilities, dtype=np.float64).T
+        for q, err in _readout_errors(backend, readout)
+    }
+    for a in readout_mats.values():
+        a.setflags(write=False)
+    props = target.qubit_properties or [None] * backend.num_qubits
+    return DeviceCalibration(
+        name=class_name,
+        num_qubits=int(backend.num_qubits),
+        coupling=coupling,
+        t1=tuple(getattr(p, "t1", None) for p in props),
+        t2=tuple(getattr(p, "t2", None) for p in props),
+        durations=durations,
+        gate_errors=gate_errs,
+        readout_p1_given_0=tuple(
+            float(readout_mats[q][1, 0]) if q in readout_mats else 0.0
+            for q in range(backend.num_qubits)
+        ),
+        readout_p0_given_1=tuple(
+            float(readout_mats[q][0, 1]) if q in readout_mats else 0.0
+            for q in range(backend.num_qubits)
+        ),
+        channels={key: _kraus_of(e) for key, e in aer_errors.items()},
+        readout=readout_mats,
+        aer_errors=aer_errors,
+        backend=backend,
+    )
+
+
+# ------------------------------------------------------------------ layout
+
+
+def _cx_partners(circuit: CircuitBatch) -> list[set[int]]:
+    partners: list[set[int]] = [set() for _ in range(circuit.num_qubits)]
+    for g in circuit.gates:
+        if g.name in _TWO_QUBIT:
+            a, b = g.qubits
+            partners[a].add(b)
+            partners[b].add(a)
+    return partners
+
+
+class _BudgetSpent(Exception):
+    pass
+
+
+def _first_placement(
+    must_touch: list[list[int]], cal: DeviceCalibration, budget: int
+) -> tuple[int, ...] | None:
+    """Lexicographically smallest injective placement with ``layout[i]`` coupled to
+    ``layout[j]`` for every ``j`` in ``must_touch[i]`` (all ``j < i``); ``None`` if none."""
+    n = len(must_touch)
+    adj = [set(cal.neighbours(q)) for q in range(cal.num_qubits)]
+    placed: list[int] = []
+    steps = 0
+
+    def place(i: int) -> bool:
+        nonlocal steps
+        if i == n:
+            return True
+        if i == 0:
+            candidates: list[int] = list(range(cal.num_qubits))
+        else:
+            common = set.intersection(*(adj[placed[j]] for j in must_touch[i]))
+            candidates = sorted(common - set(placed))
+        for c in candidates:
+            steps += 1
+            if steps > budget:
+                raise _BudgetSpent
+            placed.append(c)
+            if place(i + 1):
+                return True
+            placed.pop()
+        return False
+
+    try:
+        return tuple(placed) if place(0) else None
+    except _BudgetSpent:
+        return None
+
+
+def default_layout(circuit: CircuitBatch, cal: DeviceCalibration) -> tuple[int, ...]:
+    """The layout :meth:`DeviceNoise.prepare` uses when none is given (module docstring)."""
+    n = circuit.num_qubits
+    if n > cal.num_qubits:
+        raise ParameterError(
+            "circuit", f"{n} qubits", f"at most {cal.num_qubits} qubits on {cal.name}"
+        )
+    partners = _cx_partners(circuit)
+    coupled = [sorted(j for j in partners[i] if j < i) or ([i - 1] if i else []) for i in range(n)]
+    found = _first_placement(coupled, cal, LAYOUT_SEARCH_BUDGET)
+    if found is None:
+        found = _first_placement(
+            [[i - 1] if i else [] for i in range(n)], cal, LAYOUT_SEARCH_BUDGET
+        )
+    if found is None:
+        raise ParameterError(
+            "layout", None, f"a chain of {n} coupled qubits, which {cal.name} lacks: give a layout"
+        )
+    return found
+
+
+def check_layout(layout: object, cal: DeviceCalibration) -> tuple[int, ...]:
+    """Return ``layout`` as a tuple of distinct physical qubits of ``cal``, else raise."""
+    try:
+        out = tuple(int(q) for q in layout)  # type: ignore[attr-defined]
+        ok = all(float(q) == int(q) for q in layout)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or not out or len(set(out)) != len(out):
+        raise ParameterError("layout", layout, "distinct physical qubit indices")
+    if not all(0 <= q < cal.num_qubits for q in out):
+        raise ParameterError("layout", layout, f"qubits in [0, {cal.num_qubits - 1}] on {cal.name}")
+    return out
+
+
+# ------------------------------------------------------------------ native gates
+
+
+class _NativeEmitter:
+    """Collects native gates; keeps ``rz`` angles pending per qubit and merges them."""
+
+    def __init__(self, merge_rz: bool) -> None:
+        self.gates: list[Gate] = []
+        self.merge_rz = merge_rz
+        self.pending: dict[int, NDArray[np.float64]] = {}
+
+    def rz(self, q: int, angle: NDArray[np.float64] | float) -> None:
+        a = np.asarray(angle, dtype=np.float64)
+        if not self.merge_rz:
+            self.gates.append(Gate("rz", (q,), a))
+        elif q in self.pending:
+            self.pending[q] = self.pending[q] + a
+        else:
+            self.pending[q] = a
+
+    def gate(self, name: str, qubits: tuple[int, ...]) -> None:
+        for q in qubits:
+            self._flush(q)
+        self.gates.append(Gate(name, qubits))
+
+    def _flush(self, q: int) -> None:
+        a = self.pending.pop(q, None)
+        if a is not None and not (a.ndim == 0 and a == 0.0):
+            self.gates.append(Gate("rz", (q,), a))
+
+    def finish(self) -> list[Gate]:
+        for q in sorted(self.pending):
+            self._flush(q)
+        return self.gates
+
+
+_PI = np.pi
+
+
+def _lower_one_qubit(e: _NativeEmitter, g: Gate) -> None:
+    q = g.qubits[0]
+    a = g.angle
+    if g.name in ("rz", "p"):
+        assert a is not None
+        e.rz(q, a)
+    elif g.name in ("ry", "rx"):
+        assert a is not None
+        if g.name == "rx":
+            e.rz(q, _PI / 2)
+        e.gate("sx", (q,))
+        e.rz(q, a + _PI)
+        e.gate("sx", (q,))
+        e.rz(q, 3 * _PI if g.name == "ry" else 5 * _PI / 2)
+    elif g.name == "h":
+        e.rz(q, _PI / 2)
+        e.gate("sx", (q,))
+        e.rz(q, _PI / 2)
+    elif g.name in ("x", "sx"):
+        e.gate(g.name, (q,))
+    elif g.name == "y":
+        e.rz(q, _PI)
+        e.gate("x", (q,))
+    elif g.name == "z":
+        e.rz(q, _PI)
+    else:
+        raise ParameterError(
+            "gate", g.name, "a gate with a native decomposition (see qdcnn.quantum.device)"
+        )
+
+
+class _Lowering:
+    """Rewrites one circuit's gates into native gates on a layout of ``cal``."""
+
+    def __init__(self, cal: DeviceCalibration, layout: tuple[int, ...], route: str) -> None:
+        self.cal, self.layout, self.route = cal, layout, route
+        self.logical = {p: i for i, p in enumerate(layout)}
+        self.e = _NativeEmitter(merge_rz=not any(k[0] == "rz" for k in cal.channels))
+
+    def h(self, q: int) -> None:
+        _lower_one_qubit(self.e, Gate("h", (q,)))
+
+    def cx(self, c: int, t: int) -> None:
+        pc, pt = self.layout[c], self.layout[t]
+        if (pc, pt) in self.cal.coupling:
+            self.e.gate("cx", (c, t))
+        elif (pt, pc) in self.cal.coupling:
+            self._h_pair(c, t)
+            self.e.gate("cx", (t, c))
+            self._h_pair(c, t)
+        elif self.route == "swap":
+            self._routed_cx(c, t)
+        else:
+            raise ParameterError(
+                "layout",
+                self.layout,
+                f"coupled physical qubits for every cx: cx({c}, {t}) runs on ({pc}, {pt}), not "
+                f"coupled on {self.cal.name}; give a layout that couples them, use route "
+                "'swap' (route:swap), or a device whose coupling has the circuit's cx graph",
+            )
+
+    def _h_pair(self, a: int, b: int) -> None:
+        self.h(a)
+        self.h(b)
+
+    def swap(self, a: int, b: int) -> None:
+        self.cx(a, b)
+        self.cx(b, a)
+        self.cx(a, b)
+
+    def _routed_cx(self, c: int, t: int) -> None:
+        path = self._path(self.layout[c], self.layout[t])
+        hops = [(self.logical[u], self.logical[v]) for u, v in pairwise(path[:-1])]
+        for a, b in hops:
+            self.swap(a, b)
+        self.cx(self.logical[path[-2]], t)
+        for a, b in reversed(hops):
+            self.swap(a, b)
+
+    def _path(self, start: int, goal: int) -> list[int]:
+        allowed = set(self.layout)
+        previous: dict[int, int] = {start: start}
+        queue = deque([start])
+        while queue:
+            u = queue.popleft()
+            if u == goal:
+                break
+            for v in self.cal.neighbours(u):
+                if v in allowed and v not in previous:
+                    previous[v] = u
+                    queue.append(v)
+        if goal not in previous:
+            raise ParameterError(
+                "layout", self.layout, f"a connected layout on {self.cal.name} to route cx by SWAPs"
+            )
+        path = [goal]
+        while path[-1] != start:
+            path.append(previous[path[-1]])
+        return path[::-1]
+
+    def run(self, gates: tuple[Gate, ...]) -> list[Gate]:
+        for g in gates:
+            if g.name == "cx":
+                self.cx(*g.qubits)
+            elif g.name == "cz":
+                c, t = g.qubits
+                self.h(t)
+                self.cx(c, t)
+                self.h(t)
+            elif len(g.qubits) == 1:
+                _lower_one_qubit(self.e, g)
+            else:
+                raise ParameterError("gate", g.name, "a gate with a native decomposition")
+        return self.e.finish()
+
+
+def to_native(
+    circuit: CircuitBatch, cal: DeviceCalibration, layout: tuple[int, ...], route: str = "none"
+) -> CircuitBatch:
+    """``circuit`` in native gates (``rz``, ``sx``, ``x``, ``cx``) for ``layout`` on ``cal``.
+
+    The result acts on the same logical qubits (qubit ``i`` on physical ``layout[i]``), with
+    the same probabilities; see the module docstring for the rules.
+    """
+    gates = _Lowering(cal, layout[: circuit.num_qubits], route).run(circuit.gates)
+    return CircuitBatch(circuit.num_qubits, circuit.batch_size, tuple(gates), circuit.name)
+
+
+# ------------------------------------------------------------------ the noise object
+
+
+@dataclass(frozen=True, kw_only=True)
+class DeviceNoise(NoiseSpec):
+    """A fake backend's calibrated noise; accepted wherever a :class:`NoiseSpec` is.
+
+    Build it with :meth:`from_backend` (or ``parse_noise("device:FakeManilaV2")``). A
+    simulator calls :meth:`prepare` on each circuit, which returns the circuit in native
+    gates and a ``DeviceNoise`` bound to a layout; that one answers
+    :meth:`channels_after` and :meth:`readout_matrices`.
+
+    Attributes
+    ----------
+    device : str
+        Fake backend class name, e.g. ``FakeManilaV2``.
+    layout : tuple of int or None
+        Physical qubit of each logical qubit (a circuit with fewer qubits uses the first
+        entries); ``None``: :func:`default_layout` per circuit.
+    route : {"none", "swap"}
+        What an uncoupled ``cx`` does: raise, or run through SWAPs.
+    readout_model : {"asymmetric", "symmetric", "none"}
+        Readout confusion from ``prob_meas1_prep0``/``prob_meas0_prep1``, from the target's
+        one readout error, or none.
+    gate_error, thermal_relaxation : bool
+        Include the depolarizing part and the thermal-relaxation part of the gate errors.
+    calibration : DeviceCalibration
+        The calibration and its Kraus operators.
+    """
+
+    channel: str | None = field(default=None, init=False)
+    p: float = field(default=0.0, init=False)
+    readout: float = field(default=0.0, init=False)
+    device: str
+    layout: tuple[int, ...] | None = None
+    route: str = "none"
+    readout_model: str = "asymmetric"
+    gate_error: bool = True
+    thermal_relaxation: bool = True
+    calibration: DeviceCalibration = field(repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.route not in ROUTES:
+            raise ParameterError("route", self.route, f"one of {', '.join(ROUTES)}")
+        if self.layout is not None:
+            object.__setattr__(self, "layout", check_layout(self.layout, self.calibration))
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> DeviceNoise:
+        return self  # immutable, and its calibration is read-only (scikit-learn clones params)
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # pickles as the backend name and options; unpickling reads the calibration again
+        return (
+            _rebuild,
+            (
+                self.device,
+                self.layout,
+                self.route,
+                self.readout_model,
+                self.gate_error,
+                self.thermal_relaxation,
+            ),
+        )
+
+    @classmethod
+    def from_backend(
+        cls,
+        name: str,
+        *,
+        layout: tuple[int, ...] | list[int] | None = None,
+        route: str = "none",
+        readout: str = "asymmetric",
+        gate_error: bool = True,
+        thermal_relaxation: bool = True,
+    ) -> DeviceNoise:
+        """Noise of fake backend ``name`` (e.g. ``"FakeManilaV2"``, any letter case).
+
+        Needs the ``quantum`` extra (qiskit, qiskit-aer, qiskit-ibm-runtime); reads only
+        files installed with qiskit-ibm-runtime.
+        """
+        cal = load_calibration(name, readout, bool(gate_error), bool(thermal_relaxation))
+        return cls(
+            device=cal.name,
+            layout=None if layout is None else tuple(layout),
+            route=route,
+            readout_model=readout,
+            gate_error=bool(gate_error),
+            thermal_relaxation=bool(thermal_relaxation),
+            calibration=cal,
+        )
+
+    @property
+    def is_ideal(self) -> bool:
+        return not self.calibration.channels and not self.calibration.readout
+
+    def kraus(self) -> Kraus | None:
+        raise ParameterError(
+            "noise",
+            self.label(),
+            "a single-channel NoiseSpec; device noise is per gate and "
+            "qubit: use prepare() and channels_after()",
+        )
+
+    def readout_matrix(self) -> NDArray[np.float64]:
+        raise ParameterError(
+            "noise",
+            self.label(),
+            "a single-channel NoiseSpec; device readout is per qubit: use readout_matrices()",
+        )
+
+    def layout_for(self, circuit: CircuitBatch) -> tuple[int, ...]:
+        """The physical qubits ``circuit``'s logical qubits run on."""
+        if self.layout is None:
+            return default_layout(circuit, self.calibration)
+        if len(self.layout) < circuit.num_qubits:
+            raise ParameterError(
+                "layout", self.layout, f"at least {circuit.num_qubits} qubits for this circuit"
+            )
+        return self.layout[: circuit.num_qubits]
+
+    def prepare(self, circuit: CircuitBatch) -> tuple[CircuitBatch, DeviceNoise]:
+        """The circuit in native gates on its layout, and this noise bound to that layout."""
+        layout = self.layout_for(circuit)
+        native = to_native(circuit, self.calibration, layout, self.route)
+        return native, (self if self.layout == layout else replace(self, layout=layout))
+
+    def _physical(self, qubits: tuple[int, ...]) -> tuple[int, ...]:
+        if self.layout is None:
+            raise ParameterError(
+                "noise", self.label(), "a prepared DeviceNoise: call prepare(circuit) first"
+            )
+        return tuple(self.layout[q] for q in qubits)
+
+    def channels_after(self, gate: Gate) -> list[Channel]:
+        """The calibrated error of ``gate`` on its physical qubits (none for ``rz``)."""
+        if gate.name not in NATIVE_GATES:
+            raise ParameterError(
+                "gate", gate.name, f"a native gate ({', '.join(NATIVE_GATES)}): prepare() first"
+            )
+        physical = self._physical(gate.qubits)
+        ops = self.calibration.channels.get((gate.name, physical))
+        if ops is None and gate.name == "cx" and physical not in self.calibration.coupling:
+            raise ParameterError("cx qubits", physical, f"a coupled pair of {self.device}")
+        return [] if ops is None else [(gate.qubits, ops)]
+
+    def readout_matrices(self, num_qubits: int) -> list[NDArray[np.float64]] | None:
+        """Each logical qubit's ``A[measured, prepared]``: that of its physical qubit."""
+        if not self.calibration.readout:
+            return None
+        eye = np.eye(2)
+        return [
+            self.calibration.readout.get(q, eye) for q in self._physical(tuple(range(num_qubits)))
+        ]
+
+    def label(self) -> str:
+        parts = [f"device:{self.device}"]
+        if self.layout is not None:
+            parts.append("layout:" + "-".join(str(q) for q in self.layout))
+        if self.route != "none":
+            parts.append(f"route:{self.route}")
+        if self.readout_model != "asymmetric":
+            parts.append(f"readout:{self.readout_model}")
+        return ",".join(parts)
+
+
+def _rebuild(
+    device: str,
+    layout: tuple[int, ...] | None,
+    route: str,
+    readout: str,
+    gate_error: bool,
+    thermal_relaxation: bool,
+) -> DeviceNoise:
+    return DeviceNoise.from_backend(
+        device,
+        layout=layout,
+        route=route,
+        readout=readout,
+        gate_error=gate_error,
+        thermal_relaxation=thermal_relaxation,
+    )
+
+
+def parse_device_noise(text: str) -> DeviceNoise:
+    """Parse ``device:NAME[,layout:0-1-2][,route:none|swap][,readout:asymmetric|symmetric|none]``.
+
+    Examples
+    --------
+    ``parse_device_noise("device:FakeManilaV2,layout:1-2")`` runs logical qubits 0 and 1 on
+    physical qubits 1 and 2 of ``FakeManilaV2``.
+    """
+    options: dict[str, str] = {}
+    for part in filter(None, (t.strip() for t in text.split(","))):
+        key, sep, value = part.partition(":")
+        if not sep or not value or key not in ("device", "layout", "route", "readout"):
+            raise ParameterError(
+                "noise",
+                text,
+                "device:NAME with optional ,layout:0-1-2 ,route:swap ,readout:symmetric "
+                "(device noise does not combine with a channel)",
+            )
+        if key in options:
+            raise ParameterError("noise", text, f"'{key}' given once")
+        options[key] = value
+    if "device" not in options:
+        raise ParameterError("noise", text, "device:NAME, e.g. device:FakeManilaV2")
+    layout = None
+    if "layout" in options:
+        try:
+            layout = tuple(int(q) for q in options["layout"].split("-"))
+        except ValueError:
+            raise ParameterError(
+                "layout", options["layout"], "physical qubits like 0-1-2"
+            ) from None
+    return DeviceNoise.from_backend(
+        options["device"],
+        layout=layout,
+        route=options.get("route", "none"),
+        readout=options.get("readout", "asymmetric"),
+    )
