@@ -15,6 +15,7 @@ comparison with the unmodified model allows exactly the probability Aer drops.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -74,12 +75,18 @@ def circuits(rng: np.random.Generator, batch: int = 50) -> dict[str, CircuitBatc
 # ------------------------------------------------------------------ Aer references
 
 
-def kraus_wrapped(model: NoiseModel, backend: object, readout_from: NoiseModel) -> NoiseModel:
-    """``model``'s gate errors, each as one Kraus instruction, plus ``readout_from``'s readout."""
+def kraus_wrapped(
+    model: NoiseModel, backend: object, readout_from: NoiseModel, only: tuple[int, ...] = ()
+) -> NoiseModel:
+    """``model``'s gate errors, each as one Kraus instruction (on the qubits ``only``, if given).
+
+    Readout is applied separately (:func:`with_readout`), as Aer's exact probabilities have none.
+    """
     out = NoiseModel(basis_gates=list(backend.operation_names))  # type: ignore[attr-defined]
     for name, by_qubits in model._local_quantum_errors.items():
         for qubits, err in by_qubits.items():
-            out.add_quantum_error(QuantumError(qi.Kraus(err)), name, list(qubits))
+            if not only or set(qubits) <= set(only):
+                out.add_quantum_error(QuantumError(qi.Kraus(err)), name, list(qubits))
     return out
 
 
@@ -185,6 +192,23 @@ def test_probabilities_equal_aer_from_backend_on_transpiled_circuits(
     assert np.abs(got - raw).max() <= tol
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("device", ["FakeSherbrooke", "FakeTorino"])
+def test_ecr_and_cz_devices_equal_aer_from_backend(device: str, rng: np.random.Generator) -> None:
+    """127- and 133-qubit devices (ecr, cz); about 10 s each, most of it building errors."""
+    dev = DeviceNoise.from_backend(device, readout="symmetric", layout=(5, 6))
+    backend = dev.calibration.backend
+    assert dev.calibration.coupled(5, 6)
+    circ = circuits(rng, 20)["vqc"]
+    qcs = transpiled(circ, backend, (5, 6))
+    ours = from_native(dev.prepare(circ)[0], backend.num_qubits, (5, 6))[0]
+    assert noisy_wires(ours) == noisy_wires(qcs[0])
+    model = NoiseModel.from_backend(backend)
+    ref = aer_probabilities(qcs, kraus_wrapped(model, backend, model, only=(5, 6)), (5, 6))
+    ref = with_readout(ref, readout_matrices(model, (5, 6)))
+    np.testing.assert_allclose(probabilities(circ, dev), ref, atol=1e-9, rtol=0)
+
+
 def test_asymmetric_readout_equals_the_backend_properties_model(rng: np.random.Generator) -> None:
     dev = DeviceNoise.from_backend("FakeManilaV2")  # readout="asymmetric", the default
     backend = dev.calibration.backend
@@ -279,7 +303,7 @@ def test_gate_channels_are_depolarizing_then_thermal_relaxation(manila: DeviceNo
         deph = kraus_operators("phase-damping", 1 - math.exp(-2 * t / t2 + t / t1))
         relax_ops = np.array([b @ a for a in damp for b in deph])
         f_relax = _average_fidelity(relax_ops)
-        got = cal.channels[("sx", (q,))]
+        got = cal.channel("sx", (q,))
         if err <= 1 - f_relax:  # relaxation alone explains the error: no depolarizing part
             np.testing.assert_allclose(_superop(got), _superop(relax_ops), atol=1e-12)
             continue
@@ -309,7 +333,7 @@ def test_rz_is_virtual_and_readout_is_per_qubit(manila: DeviceNoise) -> None:
         target["rz"][(q,)].duration == 0 and target["rz"][(q,)].error == 0
         for q in range(cal.num_qubits)
     )
-    assert not any(name == "rz" for name, _ in cal.channels)
+    assert not any(name == "rz" for name, _ in cal.aer_errors)
     circ = CircuitBuilder(2, 1).rz(0, 0.3).build()
     native, bound = manila.prepare(circ)
     assert [g.name for g in native.gates] == ["rz"] and bound.channels_after(native.gates[0]) == []
@@ -359,17 +383,32 @@ def test_native_rewrite_is_the_same_unitary(
     _equal_up_to_phase(unitary(native), unitary(circ))
 
 
-def test_cz_and_reversed_cx_on_a_one_way_coupling(manila: DeviceNoise) -> None:
-    cal = manila.calibration
-    one_way = type(cal)(**{**cal.__dict__, "coupling": frozenset({(1, 0)})})
-    circ = CircuitBatch(2, 1, (Gate("h", (0,)), Gate("cz", (0, 1)), Gate("cx", (0, 1))))
+@pytest.mark.parametrize("gate2", ["cx", "ecr", "cz"])
+def test_two_qubit_rewrites_on_one_way_couplings(gate2: str, manila: DeviceNoise) -> None:
+    """cx both ways and cz, on a device with ``gate2`` only from physical qubit 1 to 0."""
+    one_way = replace(manila.calibration, two_qubit_gate=gate2, coupling=frozenset({(1, 0)}))
+    gates = (
+        Gate("h", (0,)),
+        Gate("cz", (0, 1)),
+        Gate("cx", (0, 1)),
+        Gate("ry", (1,), np.array(0.3)),
+        Gate("cx", (1, 0)),
+        Gate("rx", (0,), np.array(-1.1)),
+    )
+    circ = CircuitBatch(2, 1, gates)
     native = to_native(circ, one_way, (0, 1))
-    assert [g.qubits for g in native.gates if g.name == "cx"] == [(1, 0), (1, 0)]
+    assert {g.name for g in native.gates} <= {"rz", "sx", "x", gate2}
+    assert {g.qubits for g in native.gates if g.name == gate2} <= (
+        {(1, 0), (0, 1)} if gate2 == "cz" else {(1, 0)}
+    )
     qc = qiskit.QuantumCircuit(2)
     qc.h(0)
     qc.cz(0, 1)
     qc.cx(0, 1)
-    _equal_up_to_phase(unitary(native), qi.Operator(qc).data[None])
+    qc.ry(0.3, 1)
+    qc.cx(1, 0)
+    qc.rx(-1.1, 0)
+    _equal_up_to_phase(qi.Operator(to_qiskit(native, 0)).data[None], qi.Operator(qc).data[None])
 
 
 def test_qiskit_transpile_level0_makes_the_same_noisy_gates(
@@ -433,7 +472,7 @@ def test_parse_device_noise() -> None:
     ("text", "message"),
     [
         ("device:FakeNowhere", "device='FakeNowhere' is invalid: an IBM fake backend, one of"),
-        ("device:FakeSherbrooke", "ecr and cz devices are not supported yet"),
+        ("device:FakeCairoV2", "one of cx, ecr, cz (this one has cx, delay, ecr"),
         ("device:FakeManilaV2,depolarizing:0.1", "does not combine with a channel"),
         ("device:FakeManilaV2,layout:0-0", "layout=(0, 0) is invalid: distinct"),
         ("device:FakeManilaV2,layout:0-9", "layout=(0, 9) is invalid: qubits in [0, 4]"),

@@ -5,12 +5,13 @@
 builds the errors qiskit-aer's ``NoiseModel.from_backend`` builds, with qiskit-aer's own
 functions (``basic_device_gate_errors`` and ``basic_device_readout_errors``):
 
-* after every native gate (``sx``, ``x``, ``cx``) on its physical qubit(s): a depolarizing
-  error composed with thermal relaxation from the qubits' ``T1``, ``T2`` (truncated to
-  ``2 T1``) and the gate's duration, the depolarizing strength chosen so that the
-  composition has the calibrated gate error; two-qubit gates get a two-qubit
-  depolarizing error and one relaxation per qubit. ``rz`` is virtual: zero duration, no
-  error (as in the calibration and in Aer's model);
+* after every native gate (``sx``, ``x`` and the two-qubit ``cx``, ``ecr`` or ``cz``) on
+  its physical qubit(s): a depolarizing error composed with thermal relaxation from the
+  qubits' ``T1``, ``T2`` (truncated to ``2 T1``) and the gate's duration, the depolarizing
+  strength chosen so that the composition has the calibrated gate error (no depolarizing
+  part when relaxation alone exceeds it); two-qubit gates get a two-qubit depolarizing
+  error and one relaxation per qubit. ``rz`` is virtual: zero duration, no error (as in
+  the calibration and in Aer's model);
 * at measurement, each qubit's readout confusion matrix. By default it is asymmetric,
   ``P(1|0) = prob_meas1_prep0`` and ``P(0|1) = prob_meas0_prep1`` from the backend's
   properties (what the fake backend's own ``run`` simulates); ``readout="symmetric"``
@@ -22,11 +23,12 @@ batched simulators through the :class:`qdcnn.quantum.noise.GateNoise` protocol.
 
 Running a qdcnn circuit on a device (:meth:`DeviceNoise.prepare`)
 -----------------------------------------------------------------
-*Native gates.* Every gate is rewritten into ``rz``, ``sx``, ``x``, ``cx`` with the same
-rules Qiskit's transpiler applies at ``optimization_level=0`` (checked in the tests), so
-the noisy gates are the ones a transpiled circuit has; angles stay per-circuit arrays (one
-rewrite for the whole batch, no per-circuit transpile); ``rz`` gates next to each other
-on a qubit are merged (they are noise-free), and global phases are dropped:
+*Native gates.* Every gate is rewritten into ``rz``, ``sx``, ``x`` and the device's
+two-qubit gate with the same rules Qiskit's transpiler applies at ``optimization_level=0``
+(checked in the tests), so the noisy gates are the ones a transpiled circuit has; angles
+stay per-circuit arrays (one rewrite for the whole batch, no per-circuit transpile);
+``rz`` gates next to each other on a qubit are merged (they are noise-free), and global
+phases are dropped:
 
 =============  ==========================================================
 qdcnn gate     native gates, in time order
@@ -36,8 +38,12 @@ qdcnn gate     native gates, in time order
 ``rx(a)``      ``rz(pi/2), sx, rz(a + pi), sx, rz(5 pi/2)``
 ``h``          ``rz(pi/2), sx, rz(pi/2)``
 ``x``, ``sx``  themselves; ``y``: ``rz(pi), x``; ``z``: ``rz(pi)``
-``cx(c, t)``   ``cx`` if the device couples ``c -> t``; else ``H H cx(t, c) H H``
-``cz(c, t)``   ``h(t), cx(c, t), h(t)``
+``cx(c, t)``   cx devices: ``cx`` if the device couples ``c -> t``, else
+               ``H H cx(t, c) H H``; cz devices: ``h(t), cz, h(t)``; ecr
+               devices: ``rz(-pi/2)`` on ``c``, ``rz(pi) sx rz(pi)`` on
+               ``t``, ``ecr(c, t)``, ``x`` on ``c`` (or Qiskit's longer
+               form around ``ecr(t, c)``)
+``cz(c, t)``   ``cz`` on cz devices, else ``h(t), cx(c, t), h(t)``
 =============  ==========================================================
 
 *Layout.* Logical qubit ``i`` runs on physical qubit ``layout[i]``. By default the layout is
@@ -77,8 +83,10 @@ from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch, Gate
 from qdcnn.quantum.noise import Channel, Kraus, NoiseSpec
 
-#: the native gates qdcnn circuits are rewritten into
-NATIVE_GATES: tuple[str, ...] = ("rz", "sx", "x", "cx")
+#: the one-qubit native gates qdcnn circuits are rewritten into
+NATIVE_ONE_QUBIT: tuple[str, ...] = ("rz", "sx", "x")
+#: the two-qubit native gates a device may have (one of them)
+NATIVE_TWO_QUBIT: tuple[str, ...] = ("cx", "ecr", "cz")
 ROUTES: tuple[str, ...] = ("none", "swap")
 READOUT_MODELS: tuple[str, ...] = ("asymmetric", "symmetric", "none")
 #: tried placements before the default layout gives up looking for one that couples every cx
@@ -119,8 +127,10 @@ class DeviceCalibration:
         Class name in ``qiskit_ibm_runtime.fake_provider``, e.g. ``FakeManilaV2``.
     num_qubits : int
         Physical qubits of the device.
+    two_qubit_gate : str
+        The device's native two-qubit gate: ``cx``, ``ecr`` or ``cz`` (``""`` for one qubit).
     coupling : frozenset of (int, int)
-        Directed pairs ``(control, target)`` that have a native ``cx``.
+        Directed pairs ``(first, second)`` that have the native two-qubit gate.
     t1, t2 : tuple of float or None
         Per physical qubit, in seconds (as calibrated; the model truncates ``T2`` to
         ``2 T1``).
@@ -129,19 +139,18 @@ class DeviceCalibration:
         for the native gates.
     readout_p1_given_0, readout_p0_given_1 : tuple of float
         Per physical qubit, the readout errors the model uses.
-    channels : dict
-        ``(gate, physical qubits) -> Kraus operators`` applied after that gate, the
-        first qubit the least significant bit of the operators.
     readout : dict
         ``physical qubit -> A[measured, prepared]``.
     aer_errors : dict
-        The same gate errors as qiskit-aer ``QuantumError`` objects (for the Aer backend).
+        ``(gate, physical qubits) -> QuantumError`` built by qiskit-aer; :meth:`channel` gives
+        its Kraus operators.
     backend : object
         The fake backend instance.
     """
 
     name: str
     num_qubits: int
+    two_qubit_gate: str
     coupling: frozenset[tuple[int, int]]
     t1: tuple[float | None, ...]
     t2: tuple[float | None, ...]
@@ -149,10 +158,29 @@ class DeviceCalibration:
     gate_errors: dict[tuple[str, tuple[int, ...]], float]
     readout_p1_given_0: tuple[float, ...]
     readout_p0_given_1: tuple[float, ...]
-    channels: dict[tuple[str, tuple[int, ...]], Kraus] = field(repr=False)
     readout: dict[int, NDArray[np.float64]] = field(repr=False)
     aer_errors: dict[tuple[str, tuple[int, ...]], Any] = field(repr=False)
     backend: Any = field(repr=False)
+    _kraus: dict[tuple[str, tuple[int, ...]], Kraus] = field(
+        default_factory=dict, repr=False, init=False
+    )
+
+    @property
+    def native_gates(self) -> tuple[str, ...]:
+        """``rz``, ``sx``, ``x`` and the two-qubit gate."""
+        return NATIVE_ONE_QUBIT + ((self.two_qubit_gate,) if self.two_qubit_gate else ())
+
+    def channel(self, gate: str, qubits: tuple[int, ...]) -> Kraus | None:
+        """Kraus operators of the error after ``gate`` on physical ``qubits`` (``None``: none).
+
+        ``qubits[0]`` is the least significant bit of the operators. Converted once, on
+        first use, and returned read-only (the same array every time).
+        """
+        key = (gate, qubits)
+        ops = self._kraus.get(key)
+        if ops is None and key in self.aer_errors:
+            ops = self._kraus[key] = _kraus_of(self.aer_errors[key])
+        return ops
 
     def neighbours(self, q: int) -> list[int]:
         """Physical qubits coupled to ``q`` in either direction, ascending."""
@@ -215,11 +243,15 @@ def load_calibration(
 ) -> DeviceCalibration:
     """Read fake backend ``name``'s calibration and build its errors (cached; read-only).
 
+    Large devices take a few seconds (qiskit-aer builds the errors of every gate on
+    every qubit: about 6 s for 127 qubits here); the Kraus operators are converted per
+    gate on first use.
+
     Raises
     ------
     ParameterError
-        For an unknown backend (the message lists them) or one whose two-qubit gate is
-        not ``cx`` (``ecr`` and ``cz`` devices are not supported yet).
+        For an unknown backend (the message lists them) or one without native ``rz``,
+        ``sx``, ``x`` and one of ``cx``, ``ecr``, ``cz``.
     """
     if readout not in READOUT_MODELS:
         raise ParameterError("readout", readout, f"one of {', '.join(READOUT_MODELS)}")
@@ -231,29 +263,32 @@ def load_calibration(
     backend = getattr(fake_provider, class_name)()
     target = backend.target
     ops = set(target.operation_names)
-    missing = [g for g in ("rz", "sx", "x") if g not in ops]
-    two_qubit = sorted(ops & {"cx", "ecr", "cz"})
-    if missing or (backend.num_qubits > 1 and "cx" not in ops):
+    two_qubit = [g for g in NATIVE_TWO_QUBIT if g in ops]
+    if (
+        any(g not in ops for g in NATIVE_ONE_QUBIT)
+        or len(two_qubit) > 1
+        or (backend.num_qubits > 1 and not two_qubit)
+    ):
         raise ParameterError(
             "device",
             class_name,
-            f"a backend with native rz, sx, x and cx (this one has {', '.join(two_qubit) or 'no'} "
-            "two-qubit gate); ecr and cz devices are not supported yet",
+            "a backend with native rz, sx, x and one of cx, ecr, cz (this one has "
+            f"{', '.join(sorted(ops))})",
         )
+    gate2 = two_qubit[0] if two_qubit else ""
+    native = (*NATIVE_ONE_QUBIT, *two_qubit)
     errors = basic_device_gate_errors(
         target=target, gate_error=gate_error, thermal_relaxation=thermal_relaxation
     )
-    aer_errors = {(g, tuple(q)): e for g, q, e in errors if g in NATIVE_GATES}
+    aer_errors = {(g, tuple(q)): e for g, q, e in errors if g in native}
     durations: dict[tuple[str, tuple[int, ...]], float] = {}
     gate_errs: dict[tuple[str, tuple[int, ...]], float] = {}
-    for g in NATIVE_GATES:
+    for g in native:
         for qargs, prop in target[g].items() if g in ops else ():
             if prop is not None and qargs is not None:
                 durations[(g, tuple(qargs))] = float(prop.duration or 0.0)
                 gate_errs[(g, tuple(qargs))] = float(prop.error or 0.0)
-    coupling = (
-        frozenset(tuple(q) for q in target["cx"] if q is not None) if "cx" in ops else frozenset()
-    )
+    coupling = frozenset(tuple(q) for q in target[gate2] if q is not None) if gate2 else frozenset()
     readout_mats = {
         int(q[0]): np.asarray(err.probabilities, dtype=np.float64).T
         for q, err in _readout_errors(backend, readout)
@@ -264,6 +299,7 @@ def load_calibration(
     return DeviceCalibration(
         name=class_name,
         num_qubits=int(backend.num_qubits),
+        two_qubit_gate=gate2,
         coupling=coupling,
         t1=tuple(getattr(p, "t1", None) for p in props),
         t2=tuple(getattr(p, "t2", None) for p in props),
@@ -277,7 +313,6 @@ def load_calibration(
             float(readout_mats[q][0, 1]) if q in readout_mats else 0.0
             for q in range(backend.num_qubits)
         ),
-        channels={key: _kraus_of(e) for key, e in aer_errors.items()},
         readout=readout_mats,
         aer_errors=aer_errors,
         backend=backend,
@@ -447,19 +482,28 @@ class _Lowering:
     def __init__(self, cal: DeviceCalibration, layout: tuple[int, ...], route: str) -> None:
         self.cal, self.layout, self.route = cal, layout, route
         self.logical = {p: i for i, p in enumerate(layout)}
-        self.e = _NativeEmitter(merge_rz=not any(k[0] == "rz" for k in cal.channels))
+        self.e = _NativeEmitter(merge_rz=not any(k[0] == "rz" for k in cal.aer_errors))
 
     def h(self, q: int) -> None:
         _lower_one_qubit(self.e, Gate("h", (q,)))
 
     def cx(self, c: int, t: int) -> None:
         pc, pt = self.layout[c], self.layout[t]
-        if (pc, pt) in self.cal.coupling:
-            self.e.gate("cx", (c, t))
-        elif (pt, pc) in self.cal.coupling:
-            self._h_pair(c, t)
-            self.e.gate("cx", (t, c))
-            self._h_pair(c, t)
+        gate2 = self.cal.two_qubit_gate
+        if (pc, pt) in self.cal.coupling or (pt, pc) in self.cal.coupling:
+            forward = (pc, pt) in self.cal.coupling
+            if gate2 == "cx" and forward:
+                self.e.gate("cx", (c, t))
+            elif gate2 == "cx":
+                self._h_pair(c, t)
+                self.e.gate("cx", (t, c))
+                self._h_pair(c, t)
+            elif gate2 == "cz":
+                self.h(t)
+                self.e.gate("cz", (c, t) if forward else (t, c))
+                self.h(t)
+            else:
+                self._ecr_cx(c, t, forward)
         elif self.route == "swap":
             self._routed_cx(c, t)
         else:
@@ -470,6 +514,33 @@ class _Lowering:
                 f"coupled on {self.cal.name}; give a layout that couples them, use route "
                 "'swap' (route:swap), or a device whose coupling has the circuit's cx graph",
             )
+
+    def _ecr_cx(self, c: int, t: int, forward: bool) -> None:
+        """``cx(c, t)`` from an ``ecr`` on ``(c, t)`` or ``(t, c)``, as Qiskit translates it."""
+        e, half = self.e, _PI / 2
+        if forward:
+            e.rz(c, -half)
+            e.rz(t, _PI)
+            e.gate("sx", (t,))
+            e.rz(t, _PI)
+            e.gate("ecr", (c, t))
+            e.gate("x", (c,))
+            return
+        e.rz(c, 0.0)
+        e.gate("sx", (c,))
+        e.rz(c, -half)
+        e.rz(t, _PI)
+        e.gate("sx", (t,))
+        e.rz(t, half)
+        e.gate("sx", (t,))
+        e.rz(t, half)
+        e.gate("ecr", (t, c))
+        self.h(c)
+        e.gate("x", (c,))
+        self.h(t)
+
+    def _coupled(self, a: int, b: int) -> bool:
+        return self.cal.coupled(self.layout[a], self.layout[b])
 
     def _h_pair(self, a: int, b: int) -> None:
         self.h(a)
@@ -514,6 +585,8 @@ class _Lowering:
         for g in gates:
             if g.name == "cx":
                 self.cx(*g.qubits)
+            elif g.name == "cz" and self.cal.two_qubit_gate == "cz" and self._coupled(*g.qubits):
+                self.e.gate("cz", g.qubits)
             elif g.name == "cz":
                 c, t = g.qubits
                 self.h(t)
@@ -529,7 +602,7 @@ class _Lowering:
 def to_native(
     circuit: CircuitBatch, cal: DeviceCalibration, layout: tuple[int, ...], route: str = "none"
 ) -> CircuitBatch:
-    """``circuit`` in native gates (``rz``, ``sx``, ``x``, ``cx``) for ``layout`` on ``cal``.
+    """``circuit`` in ``cal``'s native gates (``rz``, ``sx``, ``x``, two-qubit) on ``layout``.
 
     The result acts on the same logical qubits (qubit ``i`` on physical ``layout[i]``), with
     the same probabilities; see the module docstring for the rules.
@@ -631,7 +704,7 @@ class DeviceNoise(NoiseSpec):
 
     @property
     def is_ideal(self) -> bool:
-        return not self.calibration.channels and not self.calibration.readout
+        return not self.calibration.aer_errors and not self.calibration.readout
 
     def kraus(self) -> Kraus | None:
         raise ParameterError(
@@ -673,14 +746,17 @@ class DeviceNoise(NoiseSpec):
 
     def channels_after(self, gate: Gate) -> list[Channel]:
         """The calibrated error of ``gate`` on its physical qubits (none for ``rz``)."""
-        if gate.name not in NATIVE_GATES:
+        cal = self.calibration
+        if gate.name not in cal.native_gates:
             raise ParameterError(
-                "gate", gate.name, f"a native gate ({', '.join(NATIVE_GATES)}): prepare() first"
+                "gate", gate.name, f"a native gate ({', '.join(cal.native_gates)}): prepare() first"
             )
         physical = self._physical(gate.qubits)
-        ops = self.calibration.channels.get((gate.name, physical))
-        if ops is None and gate.name == "cx" and physical not in self.calibration.coupling:
-            raise ParameterError("cx qubits", physical, f"a coupled pair of {self.device}")
+        ops = cal.channel(gate.name, physical)
+        if ops is None and len(physical) == 2 and physical not in cal.coupling:
+            raise ParameterError(
+                f"{gate.name} qubits", physical, f"a coupled pair of {self.device}"
+            )
         return [] if ops is None else [(gate.qubits, ops)]
 
     def readout_matrices(self, num_qubits: int) -> list[NDArray[np.float64]] | None:

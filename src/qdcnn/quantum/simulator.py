@@ -185,6 +185,23 @@ def _apply_channel(
     return t.reshape(rho.shape)
 
 
+#: two-qubit gates of device-native circuits (Qiskit's matrices, first qubit the least
+#: significant bit), applied by the density-matrix path
+_NATIVE_TWO_QUBIT: dict[str, NDArray[np.complex128]] = {
+    "ecr": np.array(
+        [[0, 1, 0, 1j], [1, 0, -1j, 0], [0, 1j, 0, 1], [-1j, 0, 1, 0]], dtype=np.complex128
+    )
+    / np.sqrt(2),
+    "cz": np.diag([1, 1, 1, -1]).astype(np.complex128),
+}
+
+
+def _density_step_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
+    if g.name in _NATIVE_TWO_QUBIT:
+        return embed_operator(_NATIVE_TWO_QUBIT[g.name][None], g.qubits, n)
+    return _gate_unitary(g, n)
+
+
 def _evolve_density(circuit: CircuitBatch, noise: GateNoise | None) -> NDArray[np.complex128]:
     """Density matrices after ``circuit`` (already prepared), with ``noise``'s channels."""
     n = circuit.num_qubits
@@ -194,7 +211,7 @@ def _evolve_density(circuit: CircuitBatch, noise: GateNoise | None) -> NDArray[n
     cache: _ChannelCache = {}
     with single_thread():  # products of 4x4 matrices: BLAS threads only add overhead
         for g in circuit.gates:
-            u = _gate_unitary(g, n)
+            u = _density_step_unitary(g, n)
             rho = u @ rho @ np.conj(np.swapaxes(u, 1, 2))
             for qubits, ops in () if noise is None else noise.channels_after(g):
                 rho = _apply_channel(rho, ops, qubits, n, cache)
