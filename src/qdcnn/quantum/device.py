@@ -46,18 +46,25 @@ qdcnn gate     native gates, in time order
 ``cz(c, t)``   ``cz`` on cz devices, else ``h(t), cx(c, t), h(t)``
 =============  ==========================================================
 
-*Layout.* Logical qubit ``i`` runs on physical qubit ``layout[i]``. By default the layout is
-the lexicographically smallest list of physical qubits in which every ``cx`` of the circuit
-is between coupled qubits and each qubit with no ``cx`` partner among the lower-numbered
-ones is coupled to the previous qubit; so a circuit whose ``cx`` gates form a chain (the
-VQC: ``[0, 1]``) or none (the UU-dagger circuit: ``[0]``) gets the first chain of the
-device, counted from qubit 0, and a ring of ``cx`` gets a ring when the device has one
-(``FakeMelbourneV2`` has squares). When no layout couples every ``cx`` (a 4-qubit CNOT ring
-on a line device such as ``FakeManilaV2``), the default is the first chain and the
-uncoupled ``cx`` is an error, unless ``route="swap"``: it is then run by SWAPs (three
-``cx`` each) along the shortest path inside the layout, the ``cx``, and the SWAPs undone,
-so the circuit keeps its qubit order and pays the noise of every extra ``cx``. Qiskit's
-router would permute qubits instead of undoing; that choice is not modelled.
+*Layout.* Logical qubit ``i`` runs on physical qubit ``layout[i]``. By default
+(``placement="best"``) the layout is, among the placements in which every two-qubit gate
+of the circuit is between coupled qubits and each qubit with no two-qubit partner among
+the lower-numbered ones is coupled to the previous qubit (so a chain when nothing else
+constrains it), the one of least estimated error: the sum over logical qubits of its
+noisy native one-qubit gates times the physical qubit's ``sx`` error plus its mean readout
+error, and over coupled pairs of their two-qubit gates times the pair's error; ties go to
+the lexicographically smallest, so the choice is deterministic. (Qubit 0 of
+``FakeTorino`` reads out wrong 17 % of the time; this keeps circuits off such qubits, as a
+noise-aware transpiler would.) ``placement="first"`` takes the lexicographically smallest
+placement instead: ``[0]`` for the UU-dagger circuit and ``[0, 1]`` for the VQC on
+``FakeManilaV2``. A ring of ``cx`` gets a ring when the device has one
+(``FakeMelbourneV2`` has squares). When no placement couples every two-qubit gate (a
+4-qubit CNOT ring on a line device such as ``FakeManilaV2``), the layout is the best (or
+first) chain and the uncoupled ``cx`` is an error, unless ``route="swap"``: it then runs
+through SWAPs (three ``cx`` each) along the shortest path inside the layout, the ``cx``,
+and the SWAPs undone, so the circuit keeps its qubit order and pays the noise of every
+extra gate. Qiskit's router would permute qubits instead of undoing; that choice is not
+modelled.
 
 What device noise leaves out: crosstalk between simultaneous gates and spectator qubits,
 leakage out of the qubit space, non-Markovian (drifting, correlated) noise, coherent
@@ -69,6 +76,7 @@ queueing and run-time (see :mod:`qdcnn.quantum.hardware_time` for time estimates
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -88,8 +96,9 @@ NATIVE_ONE_QUBIT: tuple[str, ...] = ("rz", "sx", "x")
 #: the two-qubit native gates a device may have (one of them)
 NATIVE_TWO_QUBIT: tuple[str, ...] = ("cx", "ecr", "cz")
 ROUTES: tuple[str, ...] = ("none", "swap")
+PLACEMENTS: tuple[str, ...] = ("best", "first")
 READOUT_MODELS: tuple[str, ...] = ("asymmetric", "symmetric", "none")
-#: tried placements before the default layout gives up looking for one that couples every cx
+#: placement steps the default layout search takes at most (then: the best found so far)
 LAYOUT_SEARCH_BUDGET = 200_000
 
 _TWO_QUBIT = frozenset({"cx", "cz"})
@@ -336,20 +345,77 @@ class _BudgetSpent(Exception):
     pass
 
 
-def _first_placement(
-    must_touch: list[list[int]], cal: DeviceCalibration, budget: int
+#: noisy native one-qubit gates each qdcnn gate becomes (module docstring's table)
+_NATIVE_1Q_COST = {"ry": 2, "rx": 2, "h": 1, "x": 1, "y": 1, "sx": 1}
+
+
+@dataclass(frozen=True)
+class _LayoutCost:
+    """Estimated error of a placement: gate errors times gate counts, plus readout errors."""
+
+    one_qubit: tuple[int, ...]  # noisy native 1q gates per logical qubit
+    two_qubit: dict[tuple[int, int], int]  # 2q gates per logical pair (a < b)
+
+    @classmethod
+    def of(cls, circuit: CircuitBatch) -> _LayoutCost:
+        ones = [0] * circuit.num_qubits
+        twos: dict[tuple[int, int], int] = {}
+        for g in circuit.gates:
+            if len(g.qubits) == 2:
+                a, b = sorted(g.qubits)
+                twos[(a, b)] = twos.get((a, b), 0) + 1
+            else:
+                ones[g.qubits[0]] += _NATIVE_1Q_COST.get(g.name, 0)
+        return cls(tuple(ones), twos)
+
+    def qubit(self, i: int, p: int, cal: DeviceCalibration) -> float:
+        """Cost of logical qubit ``i`` on physical ``p``: its 1q gates and its readout."""
+        ro = cal.readout.get(p)
+        readout = 0.0 if ro is None else float(ro[1, 0] + ro[0, 1]) / 2
+        return self.one_qubit[i] * cal.gate_errors.get(("sx", (p,)), 0.0) + readout
+
+    def pair(self, i: int, j: int, pi: int, pj: int, cal: DeviceCalibration) -> float:
+        """Cost of the 2q gates between logical ``i`` and ``j`` on physical ``pi``, ``pj``."""
+        count = self.two_qubit.get((min(i, j), max(i, j)), 0)
+        if not count:
+            return 0.0
+        g = cal.two_qubit_gate
+        errors = [
+            cal.gate_errors[(g, q)] for q in ((pi, pj), (pj, pi)) if (g, q) in cal.gate_errors
+        ]
+        return count * min(errors, default=0.0)
+
+
+def _search_placement(
+    must_touch: list[list[int]],
+    cal: DeviceCalibration,
+    budget: int,
+    cost: _LayoutCost | None,
 ) -> tuple[int, ...] | None:
-    """Lexicographically smallest injective placement with ``layout[i]`` coupled to
-    ``layout[j]`` for every ``j`` in ``must_touch[i]`` (all ``j < i``); ``None`` if none."""
+    """An injective placement with ``layout[i]`` coupled to ``layout[j]`` for every ``j`` in
+    ``must_touch[i]`` (all ``j < i``), ``None`` if there is none.
+
+    ``cost=None``: the lexicographically smallest. Otherwise the one of least ``cost``
+    (branch and bound in lexicographic order, so ties go to the smallest), among those
+    seen within ``budget`` placement steps.
+    """
     n = len(must_touch)
     adj = [set(cal.neighbours(q)) for q in range(cal.num_qubits)]
     placed: list[int] = []
+    best: tuple[float, tuple[int, ...] | None] = (math.inf, None)
     steps = 0
 
-    def place(i: int) -> bool:
-        nonlocal steps
+    def extra(i: int, c: int) -> float:
+        if cost is None:
+            return 0.0
+        return cost.qubit(i, c, cal) + sum(cost.pair(i, j, c, placed[j], cal) for j in range(i))
+
+    def place(i: int, so_far: float) -> bool:
+        nonlocal steps, best
         if i == n:
-            return True
+            if so_far < best[0]:
+                best = (so_far, tuple(placed))
+            return cost is None  # the first complete placement is the answer
         if i == 0:
             candidates: list[int] = list(range(cal.num_qubits))
         else:
@@ -359,32 +425,45 @@ def _first_placement(
             steps += 1
             if steps > budget:
                 raise _BudgetSpent
+            total = so_far + extra(i, c)
+            if total >= best[0]:
+                continue
             placed.append(c)
-            if place(i + 1):
+            if place(i + 1, total):
                 return True
             placed.pop()
         return False
 
     try:
-        return tuple(placed) if place(0) else None
+        place(0, 0.0)
     except _BudgetSpent:
-        return None
+        pass
+    return best[1]
 
 
-def default_layout(circuit: CircuitBatch, cal: DeviceCalibration) -> tuple[int, ...]:
-    """The layout :meth:`DeviceNoise.prepare` uses when none is given (module docstring)."""
+def default_layout(
+    circuit: CircuitBatch, cal: DeviceCalibration, placement: str = "best"
+) -> tuple[int, ...]:
+    """The layout :meth:`DeviceNoise.prepare` uses when none is given (module docstring).
+
+    ``placement="best"``: of the placements that couple every two-qubit gate (each qubit
+    without a partner among lower ones coupled to the previous qubit), the one of least
+    estimated error; ``"first"``: the lexicographically smallest.
+    """
+    if placement not in PLACEMENTS:
+        raise ParameterError("placement", placement, f"one of {', '.join(PLACEMENTS)}")
     n = circuit.num_qubits
     if n > cal.num_qubits:
         raise ParameterError(
             "circuit", f"{n} qubits", f"at most {cal.num_qubits} qubits on {cal.name}"
         )
+    cost = _LayoutCost.of(circuit) if placement == "best" else None
     partners = _cx_partners(circuit)
     coupled = [sorted(j for j in partners[i] if j < i) or ([i - 1] if i else []) for i in range(n)]
-    found = _first_placement(coupled, cal, LAYOUT_SEARCH_BUDGET)
+    found = _search_placement(coupled, cal, LAYOUT_SEARCH_BUDGET, cost)
     if found is None:
-        found = _first_placement(
-            [[i - 1] if i else [] for i in range(n)], cal, LAYOUT_SEARCH_BUDGET
-        )
+        chain = [[i - 1] if i else [] for i in range(n)]
+        found = _search_placement(chain, cal, LAYOUT_SEARCH_BUDGET, cost)
     if found is None:
         raise ParameterError(
             "layout", None, f"a chain of {n} coupled qubits, which {cal.name} lacks: give a layout"
@@ -630,6 +709,8 @@ class DeviceNoise(NoiseSpec):
     layout : tuple of int or None
         Physical qubit of each logical qubit (a circuit with fewer qubits uses the first
         entries); ``None``: :func:`default_layout` per circuit.
+    placement : {"best", "first"}
+        How :func:`default_layout` picks when ``layout`` is ``None``.
     route : {"none", "swap"}
         What an uncoupled ``cx`` does: raise, or run through SWAPs.
     readout_model : {"asymmetric", "symmetric", "none"}
@@ -646,6 +727,7 @@ class DeviceNoise(NoiseSpec):
     readout: float = field(default=0.0, init=False)
     device: str
     layout: tuple[int, ...] | None = None
+    placement: str = "best"
     route: str = "none"
     readout_model: str = "asymmetric"
     gate_error: bool = True
@@ -655,6 +737,8 @@ class DeviceNoise(NoiseSpec):
     def __post_init__(self) -> None:
         if self.route not in ROUTES:
             raise ParameterError("route", self.route, f"one of {', '.join(ROUTES)}")
+        if self.placement not in PLACEMENTS:
+            raise ParameterError("placement", self.placement, f"one of {', '.join(PLACEMENTS)}")
         if self.layout is not None:
             object.__setattr__(self, "layout", check_layout(self.layout, self.calibration))
 
@@ -668,6 +752,7 @@ class DeviceNoise(NoiseSpec):
             (
                 self.device,
                 self.layout,
+                self.placement,
                 self.route,
                 self.readout_model,
                 self.gate_error,
@@ -681,6 +766,7 @@ class DeviceNoise(NoiseSpec):
         name: str,
         *,
         layout: tuple[int, ...] | list[int] | None = None,
+        placement: str = "best",
         route: str = "none",
         readout: str = "asymmetric",
         gate_error: bool = True,
@@ -695,6 +781,7 @@ class DeviceNoise(NoiseSpec):
         return cls(
             device=cal.name,
             layout=None if layout is None else tuple(layout),
+            placement=placement,
             route=route,
             readout_model=readout,
             gate_error=bool(gate_error),
@@ -724,7 +811,7 @@ class DeviceNoise(NoiseSpec):
     def layout_for(self, circuit: CircuitBatch) -> tuple[int, ...]:
         """The physical qubits ``circuit``'s logical qubits run on."""
         if self.layout is None:
-            return default_layout(circuit, self.calibration)
+            return default_layout(circuit, self.calibration, self.placement)
         if len(self.layout) < circuit.num_qubits:
             raise ParameterError(
                 "layout", self.layout, f"at least {circuit.num_qubits} qubits for this circuit"
@@ -772,6 +859,8 @@ class DeviceNoise(NoiseSpec):
         parts = [f"device:{self.device}"]
         if self.layout is not None:
             parts.append("layout:" + "-".join(str(q) for q in self.layout))
+        elif self.placement != "best":
+            parts.append(f"layout:{self.placement}")
         if self.route != "none":
             parts.append(f"route:{self.route}")
         if self.readout_model != "asymmetric":
@@ -782,6 +871,7 @@ class DeviceNoise(NoiseSpec):
 def _rebuild(
     device: str,
     layout: tuple[int, ...] | None,
+    placement: str,
     route: str,
     readout: str,
     gate_error: bool,
@@ -790,6 +880,7 @@ def _rebuild(
     return DeviceNoise.from_backend(
         device,
         layout=layout,
+        placement=placement,
         route=route,
         readout=readout,
         gate_error=gate_error,
@@ -798,7 +889,9 @@ def _rebuild(
 
 
 def parse_device_noise(text: str) -> DeviceNoise:
-    """Parse ``device:NAME[,layout:0-1-2][,route:none|swap][,readout:asymmetric|symmetric|none]``.
+    """Parse ``device:NAME[,layout:0-1-2|best|first][,route:none|swap][,readout:MODEL]``.
+
+    ``MODEL`` is ``asymmetric`` (default), ``symmetric`` or ``none``.
 
     Examples
     --------
@@ -821,16 +914,19 @@ def parse_device_noise(text: str) -> DeviceNoise:
     if "device" not in options:
         raise ParameterError("noise", text, "device:NAME, e.g. device:FakeManilaV2")
     layout = None
-    if "layout" in options:
+    placement = options.get("layout", "best")
+    if placement not in PLACEMENTS:
         try:
-            layout = tuple(int(q) for q in options["layout"].split("-"))
+            layout = tuple(int(q) for q in placement.split("-"))
         except ValueError:
             raise ParameterError(
-                "layout", options["layout"], "physical qubits like 0-1-2"
+                "layout", placement, "physical qubits like 0-1-2, or best, or first"
             ) from None
+        placement = "best"
     return DeviceNoise.from_backend(
         options["device"],
         layout=layout,
+        placement=placement,
         route=options.get("route", "none"),
         readout=options.get("readout", "asymmetric"),
     )
