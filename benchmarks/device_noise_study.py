@@ -3,11 +3,10 @@
 For each fake backend (``device:NAME``), the same models as the noise grid of
 ``bench_noise.py`` -- per contiguous fold, a UU-dagger rule and a VQC trained once without
 noise on ``--data``'s lane features -- classify their test frames with exact density-matrix
-probabilities under the device's noise (native gates, the least-error default layout, asymmetric
-readout);
-the UU-dagger shadow detector, its centroid trained on synthetic scenes with masks, is scored
-(BER) on held-out scenes. Times are measured on this machine, one thread: loading the
-calibration, and each noisy evaluation.
+probabilities under the device's noise (native gates, the least-error default layout,
+asymmetric readout); the UU-dagger shadow detector, its centroid trained on synthetic
+scenes with masks, is scored (BER) on held-out scenes. Times are measured on this
+machine, one thread: loading the calibration, and each noisy evaluation.
 
 Usage::
 
