@@ -649,3 +649,19 @@ def test_noise_spec_results_are_unchanged(channel: str, rng: np.random.Generator
 
 def _close(a: np.ndarray, b: np.ndarray) -> None:
     np.testing.assert_allclose(a, b, atol=1e-14, rtol=0)
+
+
+def test_qubit_table_reports_the_calibration(manila: DeviceNoise) -> None:
+    cal = manila.calibration
+    target, props = cal.backend.target, cal.backend.properties()
+    rows = cal.qubit_table((2, 0))
+    assert [r["qubit"] for r in rows] == [2, 0]
+    for r in rows:
+        q = r["qubit"]
+        assert r["t1_us"] == pytest.approx(target.qubit_properties[q].t1 * 1e6, rel=1e-12)
+        assert r["t2_us"] == pytest.approx(target.qubit_properties[q].t2 * 1e6, rel=1e-12)
+        assert r["sx_error"] == target["sx"][(q,)].error
+        assert r["sx_ns"] == pytest.approx(target["sx"][(q,)].duration * 1e9, rel=1e-12)
+        assert r["readout_p1_given_0"] == props.qubit_property(q)["prob_meas1_prep0"][0]
+        assert r["readout_p0_given_1"] == props.qubit_property(q)["prob_meas0_prep1"][0]
+    assert len(cal.qubit_table()) == 5
