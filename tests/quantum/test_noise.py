@@ -125,3 +125,17 @@ def test_readout_error_matches_aer_shots(rng: np.random.Generator) -> None:
     freq = run_aer(circ, shots=8192, noise=spec, seed=5) / 8192
     sigma = np.sqrt(exact * (1 - exact) / 8192)
     assert (np.abs(freq - exact) < 4 * sigma + 1e-9).all()
+
+
+def test_device_noise_without_the_quantum_extra_names_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sys
+
+    from qdcnn.errors import MissingExtraError
+    from qdcnn.quantum.device import load_calibration
+
+    load_calibration.cache_clear()  # a calibration read earlier in this process would answer
+    monkeypatch.setitem(sys.modules, "qiskit_ibm_runtime", None)  # import fails as if absent
+    with pytest.raises(MissingExtraError, match=r"pip install 'qdcnn\[quantum\]'"):
+        parse_noise("device:FakeManilaV2")

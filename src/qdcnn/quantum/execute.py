@@ -41,7 +41,9 @@ def run_probabilities(
     shots : int or None
         Measurements per circuit; ``None`` for exact probabilities.
     noise : NoiseSpec or None
-        Gate and readout noise.
+        Gate and readout noise: a channel after every gate, or a device's calibrated
+        noise (:class:`qdcnn.quantum.device.DeviceNoise`, e.g.
+        ``parse_noise("device:FakeManilaV2")``).
     backend : {"numpy", "aer"}
         Batched NumPy simulation, or Qiskit Aer (all circuits in one run call).
     rng : int, Generator or None
@@ -61,10 +63,12 @@ def run_probabilities(
 
     seed = int(as_generator(rng).integers(2**31 - 1))
     if shots is None:
-        out = run_aer(circuit, noise=noise, seed=seed)
-        if noise is not None and noise.readout:
+        out = np.asarray(run_aer(circuit, noise=noise, seed=seed), dtype=np.float64)
+        if noise is not None and not noise.is_ideal:
             from qdcnn.quantum.simulator import apply_readout_error
 
-            out = apply_readout_error(np.asarray(out, dtype=np.float64), noise, circuit.num_qubits)
-        return np.asarray(out, dtype=np.float64)
+            # Aer's exact probabilities leave out readout error; each qubit's is applied here
+            bound = noise.prepare(circuit)[1]
+            out = apply_readout_error(out, bound, circuit.num_qubits)
+        return out
     return run_aer(circuit, shots=shots, noise=noise, seed=seed) / float(shots)

@@ -5,6 +5,7 @@ shape ``S + (2, 2)``, so one call builds the gate for a whole batch of circuits.
 
 The definitions follow Qiskit's circuit library: ``RY(t) = exp(-i t Y / 2)``,
 ``RZ(t) = diag(e^{-i t/2}, e^{i t/2})``, ``P(l) = diag(1, e^{i l})``.
+``SX = sqrt(X)`` is the native gate of IBM devices (see :mod:`qdcnn.quantum.device`).
 Real gates (RY, H, X, Z) are returned as ``float64`` so that circuits made only
 of them are simulated in real arithmetic; the others are ``complex128``.
 """
@@ -23,6 +24,8 @@ X: Matrix = np.array([[0.0, 1.0], [1.0, 0.0]])
 Y: Matrix = np.array([[0, -1j], [1j, 0]], dtype=np.complex128)
 Z: Matrix = np.array([[1.0, 0.0], [0.0, -1.0]])
 H: Matrix = np.array([[1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2.0)
+#: ``SX = sqrt(X)``, a native gate of IBM devices (Qiskit's ``SXGate``)
+SX: Matrix = np.array([[1 + 1j, 1 - 1j], [1 - 1j, 1 + 1j]], dtype=np.complex128) / 2
 
 
 def _stack(
@@ -68,3 +71,4 @@ PARAMETRIC: dict[str, Callable[[ArrayLike], Matrix]] = {
     "p": phase,
 }
 CONSTANT: dict[str, Matrix] = {"h": H, "x": X, "y": Y, "z": Z}
+CONSTANT["sx"] = SX

@@ -13,6 +13,26 @@ Phase damping comes in two forms: ``phase-damping`` is the textbook channel
 ``phase-damping-paper`` is the paper's printed operators
 ``sqrt(1-p) Z, sqrt(p)|0><0|, sqrt(p)|1><1|``. Note that the printed form applies
 a full ``Z`` at ``p = 0``.
+
+How a simulator reads noise
+---------------------------
+Every noise object -- :class:`NoiseSpec` here, :class:`qdcnn.quantum.device.DeviceNoise`
+for a real device's calibration -- follows the :class:`GateNoise` protocol, and a
+simulator needs nothing else from it::
+
+    native, bound = noise.prepare(circuit)      # the gates that run, the noise bound to them
+    for gate in native.gates:
+        rho = U rho U^dagger                    # the gate itself
+        for qubits, kraus in bound.channels_after(gate):
+            rho = sum_k K_k rho K_k^dagger      # on ``qubits`` of the circuit
+    probs = diag(rho), then bound.readout_matrices(n)[q] on each qubit q
+
+:class:`NoiseSpec` runs the circuit as it is and returns its one channel on every qubit a
+gate touches; device noise first rewrites the circuit into the device's native gates
+(``rz``, ``sx``, ``x``, ``cx``) on a qubit layout and returns per-gate, per-qubit
+calibrated channels. The NumPy density-matrix simulator
+(:func:`qdcnn.quantum.simulator.density_matrix`) is written this way, and any other
+simulator (for example a PyTorch one) can be: the protocol returns plain NumPy arrays.
 """
 
 from __future__ import annotations
@@ -20,6 +40,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,7 +49,14 @@ from numpy.typing import NDArray
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.gates import I2, X, Y, Z
 
+if TYPE_CHECKING:
+    from qdcnn.quantum.circuits import CircuitBatch, Gate
+
 Kraus = NDArray[np.complex128]
+#: ``(qubits, kraus)``: Kraus operators of shape ``(K, 2**k, 2**k)`` acting on the ``k``
+#: circuit qubits ``qubits``, ``qubits[0]`` the least significant bit of the operator's
+#: row/column index (Qiskit's convention)
+Channel = tuple[tuple[int, ...], Kraus]
 
 
 def _ops(*mats: NDArray[np.generic]) -> Kraus:
@@ -134,6 +163,40 @@ def is_cptp(ops: Kraus, atol: float = 1e-12) -> bool:
     return bool(np.allclose(total, np.eye(ops.shape[-1]), atol=atol))
 
 
+@runtime_checkable
+class GateNoise(Protocol):
+    """What a simulator needs from a noise model: the gates that run and what follows each.
+
+    Implemented by :class:`NoiseSpec` (one channel after every gate on every qubit it
+    touches) and :class:`qdcnn.quantum.device.DeviceNoise` (a device's calibration).
+    """
+
+    @property
+    def is_ideal(self) -> bool:
+        """True when the model adds no gate noise and no readout error."""
+        ...
+
+    def prepare(self, circuit: CircuitBatch) -> tuple[CircuitBatch, GateNoise]:
+        """The circuit as it runs under this noise, and the noise bound to that circuit.
+
+        :meth:`channels_after` and :meth:`readout_matrices` are called on the returned
+        noise, with the gates of the returned circuit.
+        """
+        ...
+
+    def channels_after(self, gate: Gate) -> list[Channel]:
+        """The channels that act right after ``gate``, in order, as ``(qubits, kraus)``."""
+        ...
+
+    def readout_matrices(self, num_qubits: int) -> list[NDArray[np.float64]] | None:
+        """Per qubit ``A[measured, prepared]`` (2 x 2, columns sum to 1), or ``None`` for none."""
+        ...
+
+    def label(self) -> str:
+        """Short text that names the noise, e.g. ``depolarizing:0.1``."""
+        ...
+
+
 @dataclass(frozen=True)
 class NoiseSpec:
     """Noise applied in a simulation: a channel after every gate, plus readout error.
@@ -167,6 +230,30 @@ class NoiseSpec:
         """Gate-noise Kraus operators, or ``None`` without a channel."""
         return None if self.channel is None else kraus_operators(self.channel, self.p)
 
+    @cached_property
+    def _shared_kraus(self) -> Kraus | None:
+        ops = self.kraus()
+        if ops is not None:
+            ops.setflags(write=False)  # one array is handed out for every gate
+        return ops
+
+    def prepare(self, circuit: CircuitBatch) -> tuple[CircuitBatch, NoiseSpec]:
+        """The circuit runs as it is; see :class:`GateNoise`."""
+        return circuit, self
+
+    def channels_after(self, gate: Gate) -> list[Channel]:
+        """The channel on each qubit ``gate`` touches (on both qubits of a ``cx``).
+
+        The Kraus array is the same object for every gate (read-only), so a simulator may
+        cache what it derives from it by identity.
+        """
+        ops = self._shared_kraus
+        return [] if ops is None else [((q,), ops) for q in gate.qubits]
+
+    def readout_matrices(self, num_qubits: int) -> list[NDArray[np.float64]] | None:
+        """:meth:`readout_matrix` on every qubit, or ``None`` without readout error."""
+        return None if self.readout == 0.0 else [self.readout_matrix()] * num_qubits
+
     def readout_matrix(self) -> NDArray[np.float64]:
         """``A[measured, prepared]`` for one qubit."""
         e = self.readout
@@ -182,11 +269,20 @@ class NoiseSpec:
 def parse_noise(text: str) -> NoiseSpec:
     """Parse ``"CHANNEL:P"`` (optionally ``",readout:E"``) into a :class:`NoiseSpec`.
 
+    ``"device:NAME"`` (options ``,layout:0-1-2``, ``,route:swap``,
+    ``,readout:asymmetric|symmetric|none``) gives the calibrated noise of an offline IBM
+    fake backend, a :class:`qdcnn.quantum.device.DeviceNoise` (a ``NoiseSpec`` subclass,
+    accepted wherever a ``NoiseSpec`` is); see :func:`qdcnn.quantum.device.parse_device_noise`.
+
     Examples
     --------
     >>> parse_noise("bit-flip:0.1")
     NoiseSpec(channel='bit-flip', p=0.1, readout=0.0)
     """
+    if any(part.strip().partition(":")[0] == "device" for part in text.split(",")):
+        from qdcnn.quantum.device import parse_device_noise
+
+        return parse_device_noise(text)
     channel: str | None = None
     p = 0.0
     readout = 0.0

@@ -18,6 +18,8 @@ from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import check_shots
 
 ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z")
+#: the one-qubit gates a NoiseSpec channel follows in an Aer noise model (with the native sx)
+NOISY_ONE_QUBIT_GATES: tuple[str, ...] = (*ONE_QUBIT_GATES, "sx")
 
 
 def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
@@ -39,12 +41,18 @@ def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
     return out if index is None else out[0]
 
 
-def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = ONE_QUBIT_GATES) -> Any:
+def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = NOISY_ONE_QUBIT_GATES) -> Any:
     """A qiskit-aer ``NoiseModel`` equal to ``noise`` as qdcnn applies it.
 
     The channel follows every one-qubit gate in ``gate_names`` and, tensored
     with itself, every ``cx``; the readout error acts on every measured qubit.
+    For a :class:`~qdcnn.quantum.device.DeviceNoise` it is the device's model on its
+    physical qubits (:func:`device_noise_model`).
     """
+    from qdcnn.quantum.device import DeviceNoise
+
+    if isinstance(noise, DeviceNoise):
+        return device_noise_model(noise)
     aer_noise = require("qiskit_aer", "Aer noise models").noise
     info = require("qiskit", "Aer noise models").quantum_info
     model = aer_noise.NoiseModel(basis_gates=[*gate_names, "cx"])
@@ -56,6 +64,34 @@ def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = ONE_QUBIT_GA
     if noise.readout:
         model.add_all_qubit_readout_error(aer_noise.ReadoutError(noise.readout_matrix().T))
     return model
+
+
+def device_noise_model(noise: Any) -> Any:
+    """The Aer ``NoiseModel`` of a ``DeviceNoise``, on the device's physical qubits.
+
+    The gate errors are the ones ``NoiseModel.from_backend`` adds for the native gates
+    (the same ``QuantumError`` objects qdcnn's Kraus operators come from), and the readout
+    errors are the ``DeviceNoise``'s (asymmetric by default, see
+    :mod:`qdcnn.quantum.device`).
+    """
+    aer_noise = require("qiskit_aer", "Aer noise models").noise
+    cal = noise.calibration
+    model = aer_noise.NoiseModel(basis_gates=list(cal.backend.operation_names))
+    for (name, qubits), error in cal.aer_errors.items():
+        model.add_quantum_error(error, name, list(qubits))
+    for q, a in cal.readout.items():
+        model.add_readout_error(aer_noise.ReadoutError(np.asarray(a).T), [q])
+    return model
+
+
+def _on_device(circuits: list[Any], layout: tuple[int, ...], num_qubits: int) -> list[Any]:
+    """Place logical circuits on physical qubits ``layout`` of a ``num_qubits``-qubit device."""
+    qiskit = require("qiskit", "building Qiskit circuits")
+    out = []
+    for qc in circuits:
+        wide = qiskit.QuantumCircuit(num_qubits, name=qc.name)
+        out.append(wide.compose(qc, qubits=list(layout)))
+    return out
 
 
 def run_aer(
@@ -75,7 +111,9 @@ def run_aer(
         otherwise counts from ``shots`` measurements per circuit.
     noise : NoiseSpec or None
         Gate and readout noise (exact probabilities ignore readout error, as
-        Aer applies it only to measurements).
+        Aer applies it only to measurements). A ``DeviceNoise`` runs the circuit's
+        native gates on the device's physical qubits (``layout``) with the device's
+        noise model; the outcomes are indexed by logical qubit.
     seed : int or None
         ``seed_simulator`` for reproducible shots.
     method : str or None
@@ -87,21 +125,34 @@ def run_aer(
         Probabilities (float) or counts (int), index = basis state, qubit 0 = LSB.
     """
     aer = require("qiskit_aer", "the Aer backend")
+    from qdcnn.quantum.device import DeviceNoise
+
     noisy = noise is not None and not noise.is_ideal
     sim = aer.AerSimulator(
         method=method or ("density_matrix" if noisy else "statevector"),
         noise_model=aer_noise_model(noise) if noisy and noise is not None else None,
     )
-    circuits = to_qiskit(circuit)
-    d = 2**circuit.num_qubits
+    n = circuit.num_qubits
+    measured = list(range(n))
+    if isinstance(noise, DeviceNoise) and noisy:
+        # native gates on the device's physical qubits, so its per-qubit errors apply
+        native, bound = noise.prepare(circuit)
+        assert bound.layout is not None
+        measured = list(bound.layout[:n])
+        circuits = _on_device(to_qiskit(native), bound.layout[:n], bound.calibration.num_qubits)
+    else:
+        circuits = to_qiskit(circuit)
+    d = 2**n
     if shots is None:
         for qc in circuits:
-            qc.save_probabilities()
+            qc.save_probabilities(measured)
         result = sim.run(circuits, shots=1, seed_simulator=seed).result()
         return np.array([np.asarray(result.data(i)["probabilities"]) for i in range(len(circuits))])
     check_shots(shots)
+    qiskit = require("qiskit", "building Qiskit circuits")
     for qc in circuits:
-        qc.measure_all()
+        qc.add_register(qiskit.ClassicalRegister(n, "meas"))
+        qc.measure(measured, list(range(qc.num_clbits - n, qc.num_clbits)))
     result = sim.run(circuits, shots=shots, seed_simulator=seed).result()
     counts = np.zeros((len(circuits), d), dtype=np.int64)
     for i in range(len(circuits)):

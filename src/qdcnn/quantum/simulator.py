@@ -3,8 +3,9 @@
 The statevector simulator applies each gate to all ``B`` states at once through
 a ``(B, 2**(n-1-q), 2, 2**q)`` view of the state, so the only Python loop is
 over the gates of the circuit. The density-matrix simulator embeds each gate in
-the full register and applies gate noise after every gate on every qubit it
-touches (see :mod:`qdcnn.quantum.noise`).
+the full register and applies the channels the noise model names after each gate
+(:class:`qdcnn.quantum.noise.GateNoise`: a :class:`NoiseSpec` channel on every qubit
+the gate touches, or a device's calibrated per-gate, per-qubit channels).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
 from qdcnn.quantum.circuits import CircuitBatch, Gate
-from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.noise import GateNoise, Kraus
 
 
 def _cx_permutation(n: int, control: int, target: int) -> NDArray[np.intp]:
@@ -117,39 +118,137 @@ def unitary(circuit: CircuitBatch) -> NDArray[np.complex128]:
     return u
 
 
-def density_matrix(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDArray[np.complex128]:
-    """Final density matrices, shape ``(B, 2**n, 2**n)``, with optional gate noise.
+def embed_operator(ops: NDArray[Any], qubits: tuple[int, ...], n: int) -> NDArray[np.complex128]:
+    """Embed ``k``-qubit operators ``(K, 2**k, 2**k)`` on ``qubits`` into ``(K, 2**n, 2**n)``.
 
-    The channel of ``noise`` acts after every gate on each qubit the gate
-    touches. Readout error is not part of the state; see :func:`probabilities`.
+    ``qubits[0]`` is the least significant bit of the operators' index (Qiskit's
+    convention), so ``embed_operator(cx_matrix, (c, t), n)`` is a CX with control ``c``.
     """
+    if len(qubits) == 1:
+        return embed(ops, qubits[0], n)
+    idx = np.arange(2**n)
+    sub = np.zeros_like(idx)  # the operator's index of each basis state
+    for m, q in enumerate(qubits):
+        sub |= ((idx >> q) & 1) << m
+    mask = sum(1 << q for q in qubits)
+    same_rest = (idx[:, None] & ~mask) == (idx[None, :] & ~mask)
+    full = np.asarray(ops, dtype=np.complex128)[:, sub[:, None], sub[None, :]]
+    return full * same_rest
+
+
+#: registers up to this many qubits apply a channel through its full-register Kraus
+#: operators (one einsum, the fastest there); larger ones act on the touched qubits only
+_EMBED_MAX_QUBITS = 2
+
+_ChannelCache = dict[tuple[int, tuple[int, ...]], tuple[Kraus, NDArray[np.complex128]]]
+
+
+def _cached(
+    cache: _ChannelCache, ops: Kraus, qubits: tuple[int, ...], n: int
+) -> NDArray[np.complex128]:
+    # keyed by the array's identity: noise models hand out one array per (gate, qubits), and
+    # the cache keeps a reference to it so that the id cannot be reused within one run
+    key = (id(ops), qubits)
+    hit = cache.get(key)
+    if hit is None:
+        if n <= _EMBED_MAX_QUBITS:
+            derived = embed_operator(ops, qubits, n)
+        else:
+            # superoperator S[(i, m), (j, l)] = sum_k K_ij conj(K_ml) on the touched qubits
+            d = ops.shape[-1]
+            derived = np.einsum("kij,kml->imjl", ops, ops.conj()).reshape(d * d, d * d)
+        hit = cache[key] = (ops, derived)
+    return hit[1]
+
+
+def _apply_channel(
+    rho: NDArray[np.complex128],
+    ops: Kraus,
+    qubits: tuple[int, ...],
+    n: int,
+    cache: _ChannelCache,
+) -> NDArray[np.complex128]:
+    """``sum_k K_k rho K_k^dagger`` with the Kraus operators ``ops`` acting on ``qubits``."""
+    derived = _cached(cache, ops, qubits, n)
+    if n <= _EMBED_MAX_QUBITS:
+        return np.einsum("kij,bjl,kml->bim", derived, rho, derived.conj(), optimize=True)
+    k = len(qubits)
+    # row bit of qubit q is tensor axis 1 + (n - 1 - q), its column bit that plus n; the
+    # operator's index has qubits[k - 1] as its most significant bit
+    rows = [n - qubits[m] for m in reversed(range(k))]
+    axes = rows + [a + n for a in rows]
+    t = rho.reshape((rho.shape[0],) + (2,) * (2 * n))
+    t = np.moveaxis(t, axes, range(2 * n + 1 - 2 * k, 2 * n + 1))
+    shape = t.shape
+    t = (t.reshape(-1, 4**k) @ derived.T).reshape(shape)
+    t = np.moveaxis(t, range(2 * n + 1 - 2 * k, 2 * n + 1), axes)
+    return t.reshape(rho.shape)
+
+
+#: two-qubit gates of device-native circuits (Qiskit's matrices, first qubit the least
+#: significant bit), applied by the density-matrix path
+_NATIVE_TWO_QUBIT: dict[str, NDArray[np.complex128]] = {
+    "ecr": np.array(
+        [[0, 1, 0, 1j], [1, 0, -1j, 0], [0, 1j, 0, 1], [-1j, 0, 1, 0]], dtype=np.complex128
+    )
+    / np.sqrt(2),
+    "cz": np.diag([1, 1, 1, -1]).astype(np.complex128),
+}
+
+
+def _density_step_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
+    if g.name in _NATIVE_TWO_QUBIT:
+        return embed_operator(_NATIVE_TWO_QUBIT[g.name][None], g.qubits, n)
+    return _gate_unitary(g, n)
+
+
+def _evolve_density(circuit: CircuitBatch, noise: GateNoise | None) -> NDArray[np.complex128]:
+    """Density matrices after ``circuit`` (already prepared), with ``noise``'s channels."""
     n = circuit.num_qubits
     d = 2**n
     rho = np.zeros((circuit.batch_size, d, d), dtype=np.complex128)
     rho[:, 0, 0] = 1.0
-    kraus = None if noise is None else noise.kraus()
-    kraus_on = [] if kraus is None else [embed(kraus, q, n) for q in range(n)]
+    cache: _ChannelCache = {}
     with single_thread():  # products of 4x4 matrices: BLAS threads only add overhead
         for g in circuit.gates:
-            u = _gate_unitary(g, n)
+            u = _density_step_unitary(g, n)
             rho = u @ rho @ np.conj(np.swapaxes(u, 1, 2))
-            for q in g.qubits if kraus_on else ():
-                k = kraus_on[q]
-                rho = np.einsum("kij,bjl,kml->bim", k, rho, k.conj(), optimize=True)
+            for qubits, ops in () if noise is None else noise.channels_after(g):
+                rho = _apply_channel(rho, ops, qubits, n, cache)
     return rho
 
 
+def density_matrix(circuit: CircuitBatch, noise: GateNoise | None = None) -> NDArray[np.complex128]:
+    """Final density matrices, shape ``(B, 2**n, 2**n)``, with optional gate noise.
+
+    The circuit first becomes what runs under ``noise`` (``noise.prepare``: itself for a
+    :class:`~qdcnn.quantum.noise.NoiseSpec`, native gates on a layout for device noise),
+    then the channels of ``noise.channels_after(gate)`` follow each gate: for a
+    ``NoiseSpec``, its channel on each qubit the gate touches. Readout error is not part
+    of the state; see :func:`probabilities`.
+    """
+    if noise is None:
+        return _evolve_density(circuit, None)
+    native, bound = noise.prepare(circuit)
+    return _evolve_density(native, bound)
+
+
 def apply_readout_error(
-    probs: NDArray[np.float64], noise: NoiseSpec, n: int
+    probs: NDArray[np.float64], noise: GateNoise, n: int
 ) -> NDArray[np.float64]:
-    """Apply the symmetric readout error of ``noise`` to each qubit of ``probs`` ``(B, 2**n)``."""
-    if noise.readout == 0.0:
+    """Apply each qubit's readout confusion matrix of ``noise`` to ``probs`` ``(B, 2**n)``.
+
+    ``noise`` is a prepared noise (a :class:`~qdcnn.quantum.noise.NoiseSpec`, or what
+    ``noise.prepare(circuit)`` returned); qubit ``q`` gets ``readout_matrices(n)[q]``,
+    ``A[measured, prepared]``, which need not be symmetric.
+    """
+    mats = noise.readout_matrices(n)
+    if mats is None:
         return probs
-    a = noise.readout_matrix()
     t = probs.reshape((probs.shape[0],) + (2,) * n)
     for q in range(n):
         axis = n - q  # qubit q is tensor axis n - q (qubit 0 is the last axis)
-        t = np.moveaxis(np.tensordot(t, a, axes=([axis], [1])), -1, axis)
+        t = np.moveaxis(np.tensordot(t, mats[q], axes=([axis], [1])), -1, axis)
     return t.reshape(probs.shape)
 
 
@@ -172,11 +271,11 @@ def _single_rotation(circuit: CircuitBatch, gates: list[Gate]) -> NDArray[np.flo
     return out
 
 
-def probabilities(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDArray[np.float64]:
+def probabilities(circuit: CircuitBatch, noise: GateNoise | None = None) -> NDArray[np.float64]:
     """Exact outcome probabilities, shape ``(B, 2**n)``, index = basis state (qubit 0 = LSB).
 
     Noise-free circuits use the statevector simulator; otherwise the
-    density-matrix simulator, then the readout error.
+    density-matrix simulator (:func:`density_matrix`), then each qubit's readout error.
     """
     if noise is None or noise.is_ideal:
         fused = fuse_rotations(circuit.gates)
@@ -186,7 +285,8 @@ def probabilities(circuit: CircuitBatch, noise: NoiseSpec | None = None) -> NDAr
         psi = _evolve(circuit, fused)
         probs = np.abs(psi) ** 2 if np.iscomplexobj(psi) else psi * psi
     else:
-        rho = density_matrix(circuit, noise)
+        native, bound = noise.prepare(circuit)
+        rho = _evolve_density(native, bound)
         probs = np.clip(np.einsum("bii->bi", rho).real, 0.0, None)
-        probs = apply_readout_error(probs, noise, circuit.num_qubits)
+        probs = apply_readout_error(probs, bound, circuit.num_qubits)
     return probs / probs.sum(axis=1, keepdims=True)
