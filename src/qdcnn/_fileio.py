@@ -54,3 +54,31 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     """:func:`atomic_write_bytes` of ``text`` encoded as UTF-8."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def unique_stems(paths: list[Path]) -> dict[Path, str]:
+    """An output stem per input path, unique within ``paths``.
+
+    A file's stem is used as it is when no other input shares it; inputs that share a
+    stem (``a/x.png`` and ``b/x.png``, or ``x.png`` and ``x.jpg``) get
+    ``<stem>-<first 8 hex digits of the SHA-256 of the input's absolute path>``, so their
+    outputs never overwrite each other and the name is the same on every run.
+
+    Examples
+    --------
+    >>> names = unique_stems([Path("a/x.png"), Path("b/x.png"), Path("y.png")])
+    >>> names[Path("y.png")], names[Path("a/x.png")] != names[Path("b/x.png")]
+    ('y', True)
+    """
+    import hashlib
+    from collections import Counter
+
+    counts = Counter(p.stem for p in paths)
+    out: dict[Path, str] = {}
+    for p in paths:
+        if counts[p.stem] == 1:
+            out[p] = p.stem
+        else:
+            digest = hashlib.sha256(os.fsencode(os.path.abspath(p))).hexdigest()[:8]
+            out[p] = f"{p.stem}-{digest}"
+    return out

@@ -437,3 +437,32 @@ def test_steering_in_degrees_is_recognised_and_said(tmp_path: Path, monkeypatch)
     res = runner.invoke(app, [*args, "--label-threshold", "5"])
     assert res.exit_code == 0, res.stderr
     assert "labels: steering in deg" in res.stdout and "threshold 5 deg (given)" in res.stdout
+
+
+def test_inputs_that_share_a_stem_get_distinct_outputs(tmp_path: Path) -> None:
+    for sub in ("a", "b"):
+        write_image(tmp_path / "in" / sub / "x.png", road(seed=1 if sub == "a" else 2))
+    write_image(tmp_path / "in" / "a" / "x.jpg", road(seed=3))
+    out = tmp_path / "masks"
+    inputs = [str(tmp_path / "in" / "a"), str(tmp_path / "in" / "b")]
+    res = runner.invoke(app, ["detect-shadows", *inputs, "--out", str(out), "--json", "--exact"])
+    assert res.exit_code == 0, res.stderr
+    *records, _summary = json_lines(res.stdout)
+    masks = [Path(r["mask"]) for r in records]
+    assert len(set(masks)) == 3 and all(m.is_file() for m in masks)
+    assert "3 inputs share a file stem" in res.stderr
+    again = runner.invoke(app, ["detect-shadows", *inputs, "--out", str(out), "--json", "--exact"])
+    assert [r["mask"] for r in json_lines(again.stdout)[:-1]] == [str(m) for m in masks]
+
+
+def test_a_symlink_in_out_is_replaced_not_followed(tmp_path: Path) -> None:
+    write_image(tmp_path / "x.png", road())
+    out = tmp_path / "masks"
+    out.mkdir()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (out / "x_mask.png").symlink_to(victim)
+    res = runner.invoke(app, ["detect-shadows", str(tmp_path / "x.png"), "--out", str(out)])
+    assert res.exit_code == 0, res.stderr
+    assert victim.read_text() == "keep me"
+    assert not (out / "x_mask.png").is_symlink()

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._fileio import atomic_write_bytes
 from qdcnn.errors import InputError
 
 IMAGE_SUFFIXES = frozenset(
@@ -250,9 +251,12 @@ def read_mask(path: PathArg) -> NDArray[np.bool_]:
 
 
 def write_image(path: str | os.PathLike[str], image: NDArray[np.uint8]) -> Path:
-    """Write an RGB (or greyscale) ``uint8`` image; the suffix picks the format."""
+    """Write an RGB (or greyscale) ``uint8`` image; the suffix picks the format.
+
+    The file is written atomically (:func:`qdcnn._fileio.atomic_write_bytes`): a reader
+    never sees half an image, and a symbolic link at ``path`` is replaced, never followed.
+    """
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     arr = np.asarray(image)
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8) * 255
@@ -261,8 +265,7 @@ def write_image(path: str | os.PathLike[str], image: NDArray[np.uint8]) -> Path:
     ok, buf = cv2.imencode(p.suffix or ".png", arr)
     if not ok:
         raise InputError(p, "cannot encode image for this file type")
-    buf.tofile(p)
-    return p
+    return atomic_write_bytes(p, buf.tobytes())
 
 
 def write_mask(path: str | os.PathLike[str], mask: NDArray[np.bool_]) -> Path:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
@@ -25,6 +26,7 @@ from qdcnn.errors import InputError
 from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
 from qdcnn.experiments.methods import get_method
 from qdcnn.experiments.reporting import Reporter
+from qdcnn.experiments.shadow_batch import note_shared_stems
 
 __all__ = [
     "DEFAULT_TRAINING_DATA",
@@ -139,7 +141,8 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
         result.failures.append(Failure(problem.source, str(problem)))
         report.failure(result.failures[-1])
     spec.out.mkdir(parents=True, exist_ok=True)
-    decide = _Decider(model, spec.out, spec.seed)
+    note_shared_stems(listing.images, report)
+    decide = _Decider(model, spec.out, spec.seed, unique_stems(listing.images))
     with (
         open(
             spec.out / "predictions.csv",
@@ -174,10 +177,11 @@ def _csv_row(record: LaneRecord) -> list[str]:
 class _Decider:
     """The per-image work: pipeline, decision, overlay."""
 
-    def __init__(self, model: DirectionModel, out: Path, seed: int) -> None:
+    def __init__(self, model: DirectionModel, out: Path, seed: int, stems: dict[Path, str]) -> None:
         from qdcnn.vision.grouping import mode_columns
 
         self.model = model
+        self.stems = stems
         self.out = out
         self.rng = np.random.default_rng(seed)
         cfg = model.config.grouping
@@ -205,7 +209,7 @@ class _Decider:
             roi=self.model.config.lanes.roi,
             columns=self.columns,
         )
-        target = write_image(self.out / f"{path.stem}_lanes.png", overlay)
+        target = write_image(self.out / f"{self.stems[path]}_lanes.png", overlay)
         return LaneRecord(
             str(path),
             direction,

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_int, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import ShadowConfig
@@ -63,9 +64,9 @@ def plan_detection(paths: Sequence[str | Path]) -> DetectionPlan:
     return DetectionPlan(listing.images, listing.skipped, failures)
 
 
-def mask_path(out_dir: Path, image: Path) -> Path:
-    """``out_dir/<stem>_mask.png``."""
-    return out_dir / f"{image.stem}_mask.png"
+def mask_path(out_dir: Path, image: Path, stem: str | None = None) -> Path:
+    """``out_dir/<stem>_mask.png`` (``stem`` defaults to the image's own)."""
+    return out_dir / f"{image.stem if stem is None else stem}_mask.png"
 
 
 def detect_files(
@@ -86,13 +87,14 @@ def detect_files(
     check_method(method)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = as_generator(seed)
+    stems = unique_stems(list(images))
 
     def work(path: Path) -> MaskRecord:
         image = read_image(path)
         t0 = time.perf_counter()
         mask = detect_shadows(image, method, config, model=model, backend=backend, rng=rng)
         seconds = time.perf_counter() - t0
-        target = write_mask(mask_path(out_dir, path), mask)
+        target = write_mask(mask_path(out_dir, path, stems[path]), mask)
         return MaskRecord(str(path), method, seconds, float(mask.mean()), str(target))
 
     for outcome in run_batch(images, work):
@@ -244,6 +246,7 @@ def run_shadow_detection(
     for f in plan.failures:
         result.failures.append(f)
         report.failure(f)
+    note_shared_stems(plan.images, report)
     items = detect_files(
         plan.images,
         spec.method,
@@ -263,6 +266,16 @@ def run_shadow_detection(
                 report.failure(item)
             advance()
     return result
+
+
+def note_shared_stems(images: Sequence[Path], report: Reporter) -> None:
+    stems = unique_stems(list(images))
+    shared = sum(1 for p in images if stems[p] != p.stem)
+    if shared:
+        report.note(
+            f"{shared} inputs share a file stem with another input: their outputs are named "
+            "<stem>-<8 hex digits of the input path>, listed in each record"
+        )
 
 
 @dataclass(frozen=True)
