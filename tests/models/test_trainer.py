@@ -87,7 +87,7 @@ def test_trains_a_custom_network_to_high_accuracy() -> None:
     }
     assert (result.n_train, result.n_val, result.n_extra) == (
         len(split_train_val(120, 0.15, blocks=4, gap=5)[0]),
-        18,
+        len(split_train_val(120, 0.15, blocks=4, gap=5)[1]),
         0,
     )
 

@@ -18,7 +18,7 @@ Scores (one definition everywhere)
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,10 +26,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from sklearn.base import BaseEstimator, clone
 from sklearn.metrics import confusion_matrix, precision_recall_fscore_support
-from sklearn.model_selection import BaseCrossValidator, GridSearchCV
+from sklearn.model_selection import GridSearchCV
 
-from qdcnn._validation import check_int
 from qdcnn.data.labels import DIRECTIONS
+from qdcnn.data.splits import ContiguousKFold, Split
 from qdcnn.errors import ParameterError
 
 __all__ = [
@@ -43,64 +43,7 @@ __all__ = [
     "summarise",
 ]
 
-Split = tuple[NDArray[np.intp], NDArray[np.intp]]
 N_CLASSES = len(DIRECTIONS)
-
-
-class ContiguousKFold(BaseCrossValidator):
-    """K contiguous test blocks; training leaves out ``gap`` frames on each side of a block.
-
-    Blocks are those of scikit-learn's ``KFold(n_splits, shuffle=False)``: sizes differ by
-    at most one frame and they cover every frame once, in order.
-
-    Parameters
-    ----------
-    n_splits : int
-        Number of folds, at least 2.
-    gap : int
-        Frames on each side of a test block that neither train nor test, at least 0 and
-        smaller than the shortest test block (so that training keeps most frames).
-
-    Examples
-    --------
-    >>> cv = ContiguousKFold(3, gap=1)
-    >>> [(train.tolist(), test.tolist()) for train, test in cv.split(range(9))]
-    [([4, 5, 6, 7, 8], [0, 1, 2]), ([0, 1, 7, 8], [3, 4, 5]), ([0, 1, 2, 3, 4], [6, 7, 8])]
-    """
-
-    def __init__(self, n_splits: int = 5, gap: int = 0) -> None:
-        self.n_splits = n_splits
-        self.gap = gap
-
-    def get_n_splits(self, X: object = None, y: object = None, groups: object = None) -> int:
-        return int(self.n_splits)
-
-    def check(self, n: int) -> None:
-        """Refuse a protocol that cannot be run honestly on ``n`` frames."""
-        check_int("folds", self.n_splits, 2, max(2, n))
-        gap = check_int("gap", self.gap, 0)
-        shortest = n // int(self.n_splits)
-        if gap >= shortest:
-            raise ParameterError(
-                "gap",
-                gap,
-                f"smaller than the shortest test block ({shortest} frames: {n} frames in "
-                f"{self.n_splits} folds)",
-            )
-
-    def split(
-        self, X: ArrayLike, y: ArrayLike | None = None, groups: ArrayLike | None = None
-    ) -> Iterator[Split]:
-        n = len(X)  # type: ignore[arg-type]
-        self.check(n)
-        sizes = np.full(int(self.n_splits), n // int(self.n_splits))
-        sizes[: n % int(self.n_splits)] += 1
-        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-        idx = np.arange(n)
-        for start, size in zip(starts, sizes, strict=True):
-            lo, hi = start - int(self.gap), start + size - 1 + int(self.gap)
-            train = idx[(idx < lo) | (idx > hi)]
-            yield train, idx[start : start + size]
 
 
 def fit_with_search(

@@ -168,45 +168,12 @@ def class_weights(labels: NDArray[np.int64], *, mirrored: bool = False) -> NDArr
 def split_train_val(
     n: int, val_fraction: float, *, blocks: int = 1, gap: int = 0
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Indices of a contiguous-block split of ``n`` frames in recording order.
+    """Training and validation frames for early stopping (see :func:`validation_split`).
 
-    ``val_fraction`` of the frames validate, as ``blocks`` contiguous blocks
-    spread evenly over the recording, the last one ending at the last frame
-    (``blocks=1``: the last frames). The ``gap`` frames on each side of a block
-    neither train nor validate. Frames are video: a random split would put
-    near-identical neighbours on both sides, and labels smoothed over
-    neighbouring frames leak across a block edge without the gap. One block at
-    the end of a short recording can miss a class altogether (a left bend, say),
-    so early stopping would favour epochs that never predict it; several blocks
-    sample several stretches of road. On short inputs the split degrades
-    gracefully: a block is at least ``2 * gap`` frames long (fewer blocks
-    otherwise), and the gaps are shortened so that they take at most half of
-    the frames that do not validate. At least one frame validates when
-    ``val_fraction > 0`` and ``n >= 3``.
-
-    Examples
-    --------
-    >>> train, val = split_train_val(10, 0.2)
-    >>> train.tolist(), val.tolist()
-    ([0, 1, 2, 3, 4, 5, 6, 7], [8, 9])
-    >>> train, val = split_train_val(20, 0.2, blocks=2, gap=1)
-    >>> train.tolist(), val.tolist()
-    ([0, 1, 2, 3, 4, 5, 6, 11, 12, 13, 14, 15, 16], [8, 9, 18, 19])
+    :func:`qdcnn.data.splits.validation_split`: ``val_fraction`` of the frames validate
+    as ``blocks`` contiguous blocks of the one splitter the evaluation protocol uses
+    (:class:`qdcnn.data.splits.ContiguousKFold`), fenced by ``gap`` frames on each side.
     """
-    n_val = round(n * val_fraction)
-    if val_fraction > 0 and n_val == 0 and n >= 3:
-        n_val = 1
-    n_blocks = max(1, min(blocks, n_val // max(1, 2 * gap)))
-    gap = min(gap, (n - n_val) // (4 * n_blocks))
-    sizes = np.diff(np.linspace(0, n_val, n_blocks + 1).round().astype(np.int64))
-    ends = np.linspace(0, n, n_blocks + 1).round().astype(np.int64)[1:]
-    in_val = np.zeros(n, dtype=bool)
-    near_val = np.zeros(n, dtype=bool)
-    for end, size in zip(ends, sizes, strict=True):
-        if size:
-            in_val[end - size : end] = True
-            near_val[max(end - size - gap, 0) : min(end + gap, n)] = True
-    train = np.flatnonzero(~near_val).astype(np.int64)
-    if len(train) < 2:
-        raise InputError("images", f"{n} frames leave {len(train)} for training; need at least 2")
-    return train, np.flatnonzero(in_val).astype(np.int64)
+    from qdcnn.data.splits import validation_split
+
+    return validation_split(n, val_fraction, blocks=blocks, gap=gap)
