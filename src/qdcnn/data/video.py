@@ -317,6 +317,10 @@ class _PyAVBackend:
         self.path = path
         try:
             self._container = av.open(str(path), metadata_errors="ignore")
+        except av.error.EOFError:
+            raise InputError(
+                path, "the video has no frames (the file ends after its header)"
+            ) from None
         except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
             raise InputError(path, f"not a readable video ({_first_line(exc)})") from None
         try:
@@ -650,6 +654,8 @@ class VideoWriter:
         libx264 preset; ``"ultrafast"`` has no B-frames (needed by :func:`concat_mp4`).
     threads : int
         Encoder threads (1: the calling thread; 0: FFmpeg chooses).
+    keyframe_interval : int or None
+        Frames between keyframes (``None``: the encoder's default, 250 for libx264).
 
     Examples
     --------
@@ -668,8 +674,16 @@ class VideoWriter:
         crf: int = 23,
         preset: str = "ultrafast",
         threads: int = 1,
+        keyframe_interval: int | None = None,
     ) -> None:
         self.fps = _check_fps(fps)
+        if keyframe_interval is not None and (
+            isinstance(keyframe_interval, bool)
+            or not isinstance(keyframe_interval, int)
+            or not 1 <= keyframe_interval <= 100_000
+        ):
+            raise ParameterError("keyframe_interval", keyframe_interval, "an integer >= 1 or None")
+        self.keyframe_interval = keyframe_interval
         self.encoder = check_encoder(encoder)
         if isinstance(crf, bool) or not isinstance(crf, int) or not 0 <= crf <= 51:
             raise ParameterError("crf", crf, "an integer in [0, 51]")
@@ -748,6 +762,8 @@ class VideoWriter:
         stream.time_base = time_base
         stream.codec_context.time_base = time_base
         stream.codec_context.thread_count = self.threads
+        if self.keyframe_interval is not None:
+            stream.codec_context.gop_size = self.keyframe_interval
         if self.encoder == "libx264":
             stream.options = {"preset": self.preset, "crf": str(self.crf), "tune": "zerolatency"}
         else:
