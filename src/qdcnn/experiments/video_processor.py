@@ -9,7 +9,6 @@ come from a model file, from :meth:`LaneDirectionProcessor.train` or from a meth
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
 from dataclasses import replace
 from functools import lru_cache
 from typing import Any
@@ -18,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.errors import ParameterError, QdcnnError
+from qdcnn.errors import ParameterError
 from qdcnn.experiments.video_run import FrameOutcome
 
 
@@ -27,11 +26,12 @@ class LaneDirectionProcessor:
 
     Per frame: :func:`qdcnn.pipeline.process_frame` with the model's pipeline settings
     (UU-dagger shadow detection and removal, Canny, Hough, the model's grouping) and the
-    model's decision on the lane features, with its class probabilities. The shadow
-    detector's shot sampling is seeded by ``(seed, frame index)``, so a frame gets the
-    same result in any chunk and on any worker. The overlay tints the shadow mask and
-    draws the lane segments, fitted lines and the decision
-    (:func:`qdcnn.vision.overlays.draw_lane_overlay`).
+    model's decision on the lane features, with its class probabilities
+    (``probabilities=False`` leaves them out). The shadow detector's shot sampling is
+    seeded by ``(seed, frame index)`` and the classifier sees one frame per call, so a
+    frame gets the same result in any chunk and on any worker. The overlay tints the
+    shadow mask and draws the lane segments, fitted lines and the decision
+    (:func:`draw_video_overlay`).
 
     The model source is one attribute (``model``, a
     :class:`qdcnn.experiments.direction_model.DirectionModel`), so it can come from a file,
@@ -40,19 +40,17 @@ class LaneDirectionProcessor:
 
     classes: tuple[str, ...] | None
 
-    def __init__(self, model: Any, *, seed: int = 0, tint: bool = True) -> None:
+    def __init__(
+        self, model: Any, *, seed: int = 0, tint: bool = True, probabilities: bool = True
+    ) -> None:
         from qdcnn.data.labels import DIRECTIONS
-        from qdcnn.vision.grouping import mode_columns
 
         self.model = model
         self.seed = int(seed)
         self.tint = bool(tint)
         self.config = model.config
         self.grouping = model.grouping
-        self.columns = mode_columns(
-            self.config.grouping.features, self.config.grouping.extra_features
-        )
-        has_proba = hasattr(model.estimator, "predict_proba")
+        has_proba = probabilities and hasattr(model.estimator, "predict_proba")
         self.classes = tuple(DIRECTIONS) if has_proba else None
         self._names = tuple(DIRECTIONS)
 
@@ -91,53 +89,31 @@ class LaneDirectionProcessor:
             "estimator": estimator_fingerprint(self.model.estimator),
             "seed": self.seed,
             "tint": self.tint,
+            "probabilities": self.classes is not None,
         }
 
     def process(self, image: NDArray[np.uint8], index: int) -> FrameOutcome:
-        outcome = self.process_batch([image], [index])[0]
-        if isinstance(outcome, QdcnnError):
-            raise outcome
-        return outcome
+        """Shadows, lanes and the model's decision (and class probabilities) for one frame.
 
-    def process_batch(
-        self, images: Sequence[NDArray[np.uint8]], indices: Sequence[int]
-    ) -> list[FrameOutcome | QdcnnError]:
-        """Lanes frame by frame, then one classifier call for the batch's features."""
+        The classifier is called for this frame alone: with shots, a quantum classifier
+        samples from a generator seeded afresh per call, so a one-row call gives a frame
+        the same decision in any chunk or batch (and the same as ``qdcnn detect-lanes``);
+        a call on many rows would share one stream of samples between them.
+        """
         from qdcnn.pipeline import process_frame
 
-        found: list[tuple[Any, Any, float | None] | QdcnnError] = []
-        for image, index in zip(images, indices, strict=True):
-            rng = np.random.default_rng([self.seed, index])
-            try:
-                frame = process_frame(image, self.config, (self.grouping,), rng=rng)
-            except QdcnnError as exc:
-                found.append(exc)
-                continue
-            mask = frame.shadow_mask
-            fraction = None if mask is None else float(np.count_nonzero(mask)) / mask.size
-            found.append((frame, frame.lanes[self.grouping], fraction))
-        ok = [f for f in found if not isinstance(f, QdcnnError)]
-        labels: list[int] = []
-        probs: list[tuple[float, ...] | None] = [None] * len(ok)
-        if ok:
-            features = np.vstack([lanes.features for _, lanes, _ in ok])
-            labels = [int(v) for v in self.model.estimator.predict(features)]
-            if self.classes is not None:
-                table = self.model.estimator.predict_proba(features)
-                probs = [tuple(float(p) for p in row) for row in table]
-        out: list[FrameOutcome | QdcnnError] = []
-        k = 0
-        for f in found:
-            if isinstance(f, QdcnnError):
-                out.append(f)
-                continue
-            frame, lanes, fraction = f
-            drawing = (frame.segments, lanes, frame.shadow_mask)
-            out.append(
-                FrameOutcome(self._names[labels[k]], probs[k], fraction, lanes.status, drawing)
-            )
-            k += 1
-        return out
+        rng = np.random.default_rng([self.seed, index])
+        frame = process_frame(image, self.config, (self.grouping,), rng=rng)
+        lanes = frame.lanes[self.grouping]
+        features = np.atleast_2d(lanes.features)
+        label = int(self.model.estimator.predict(features)[0])
+        probs = None
+        if self.classes is not None:
+            probs = tuple(float(p) for p in self.model.estimator.predict_proba(features)[0])
+        mask = frame.shadow_mask
+        fraction = None if mask is None else float(np.count_nonzero(mask)) / mask.size
+        drawing = (frame.segments, lanes, mask)
+        return FrameOutcome(self._names[label], probs, fraction, lanes.status, drawing)
 
     def draw(
         self, image: NDArray[np.uint8], outcome: FrameOutcome, decision: str | None
