@@ -15,6 +15,7 @@ import pytest
 from video_fakes import BatchHalvesProcessor, HalvesProcessor, ListSource, write_clip
 
 from qdcnn.data.images import write_image
+from qdcnn.data.video import VideoReader
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.video_run import (
     FRAMES_CSV,
@@ -26,7 +27,6 @@ from qdcnn.experiments.video_run import (
 from qdcnn.outputs import OutputFolder, OutputLockedError
 
 pytest.importorskip("av")
-from qdcnn.data.video import VideoReader  # noqa: E402
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 HERE = Path(__file__).resolve().parent
@@ -66,8 +66,8 @@ def test_a_run_writes_rows_in_frame_order_an_overlay_and_a_summary(
     ]  # fmt: skip
     assert [int(r["frame"]) for r in rows] == list(range(N))
     assert np.allclose([float(r["timestamp"]) for r in rows], np.arange(N) / 10.0)
-    assert all(abs(sum(float(r[f"p_{c}"]) for c in ("left", "straight", "right")) - 1) < 1e-5
-               for r in rows)  # fmt: skip
+    sums = [sum(float(r[f"p_{c}"]) for c in ("left", "straight", "right")) for r in rows]
+    assert np.allclose(sums, 1.0, atol=1e-5)
     timings = list(csv.DictReader((folder / "timings.csv").read_text().splitlines()))
     assert [int(t["frame"]) for t in timings] == list(range(N))
     assert all(float(t["process_ms"]) >= 0 and float(t["overlay_ms"]) > 0 for t in timings)
@@ -120,13 +120,13 @@ def test_a_re_run_skips_finished_work_and_redoes_missing_or_stale_work(
     assert redone.frames_processed == N and (tmp_path / "drive" / "overlay.mp4").exists()
     changed = run_inputs([clip], HalvesProcessor(version=2), tmp_path, options=OPTIONS)
     assert changed.inputs[0].frames_processed == N  # another processor setting: stale
-    forced = run_inputs([clip], HalvesProcessor(version=2), tmp_path,
-                        options=RunOptions(chunk_frames=CHUNK, smooth=SMOOTH, force=True))  # fmt: skip
+    force = RunOptions(chunk_frames=CHUNK, smooth=SMOOTH, force=True)
+    forced = run_inputs([clip], HalvesProcessor(version=2), tmp_path, options=force)
     assert forced.inputs[0].frames_processed == N
     assert (tmp_path / "drive" / FRAMES_CSV).read_bytes() == reference
     os.utime(clip)  # the input changed (modification time): everything is redone
-    assert run_inputs([clip], HalvesProcessor(version=2), tmp_path, options=OPTIONS
-                      ).inputs[0].frames_processed == N  # fmt: skip
+    touched = run_inputs([clip], HalvesProcessor(version=2), tmp_path, options=OPTIONS)
+    assert touched.inputs[0].frames_processed == N
 
 
 KILLED_RUN = textwrap.dedent(
@@ -395,3 +395,20 @@ def test_local_cluster_with_a_killed_worker_gives_identical_output(
     assert (tmp_path / "out" / "drive" / FRAMES_CSV).read_bytes() == reference
     assert result.executor["kind"] == "local" and result.executor["workers"] == 2
     assert seen[-1] == Progress("drive", N, N)
+
+
+def test_without_pyav_opencv_decodes_encodes_and_joins(
+    clip: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import qdcnn._optional
+    import qdcnn.data.video
+
+    for module in (qdcnn._optional, qdcnn.data.video):
+        monkeypatch.setattr(module, "has_module", lambda name: name != "av")
+    result = run_inputs([clip], HalvesProcessor(), tmp_path, options=OPTIONS)
+    entry = result.inputs[0]
+    assert result.ok and entry.decoder == "opencv" and entry.frames == N
+    rows = _rows((tmp_path / "drive" / FRAMES_CSV).read_bytes())
+    assert [int(r["frame"]) for r in rows] == list(range(N))
+    with VideoReader(tmp_path / "drive" / "overlay.mp4", decoder="opencv") as overlay:
+        assert len(overlay) == N and overlay.info.codec.lower() in ("mp4v", "fmp4")

@@ -147,6 +147,18 @@ class BadFrame:
     reason: str
 
 
+@dataclass(frozen=True)
+class VideoIndex:
+    """What opening a file learns by reading it through once (presentation time stamps and
+    keyframes with PyAV, the frame count with OpenCV); pass it to :class:`VideoReader` to
+    open the same file again without that pass (a chunk of a long video)."""
+
+    decoder: str
+    frames: int
+    pts: tuple[int, ...] = ()
+    keyframes: tuple[bool, ...] = ()
+
+
 def default_decoder() -> str:
     """``"pyav"`` when PyAV is installed, else ``"opencv"``."""
     return "pyav" if has_module("av") else "opencv"
@@ -228,9 +240,12 @@ class VideoReader:
         decoder: Decoder = "auto",
         max_pixels: int = MAX_VIDEO_PIXELS,
         threads: int = 1,
+        index: VideoIndex | None = None,
     ) -> None:
         self.path = Path(path)
         self.decoder = check_decoder(decoder)
+        if index is not None and index.decoder != self.decoder:
+            index = None  # another decoder counts and stamps frames its own way
         if isinstance(threads, bool) or not isinstance(threads, int) or not 0 <= threads <= 64:
             raise ParameterError("threads", threads, "an integer in [0, 64] (0: FFmpeg chooses)")
         self.threads = threads
@@ -238,9 +253,9 @@ class VideoReader:
         _check_file(self.path)
         self._backend: _PyAVBackend | _OpenCVBackend
         if self.decoder == "pyav":
-            self._backend = _PyAVBackend(self.path, max_pixels, threads)
+            self._backend = _PyAVBackend(self.path, max_pixels, threads, index)
         else:
-            self._backend = _OpenCVBackend(self.path, max_pixels)
+            self._backend = _OpenCVBackend(self.path, max_pixels, index)
         self.info = self._backend.info
         if self.info.frames == 0:
             self.close()
@@ -248,6 +263,11 @@ class VideoReader:
 
     def __len__(self) -> int:
         return self.info.frames
+
+    @property
+    def index(self) -> VideoIndex:
+        """This file's :class:`VideoIndex`, to reopen it quickly."""
+        return self._backend.index
 
     def read(self, start: int = 0, stop: int | None = None) -> FrameReader:
         """Frames ``start`` to ``stop - 1`` (to the end when ``stop`` is None), in order.
@@ -311,7 +331,7 @@ class FrameReader:
 class _PyAVBackend:
     """Decoding with PyAV; an index of presentation time stamps gives exact seeking."""
 
-    def __init__(self, path: Path, max_pixels: int, threads: int) -> None:
+    def __init__(self, path: Path, max_pixels: int, threads: int, index: VideoIndex | None) -> None:
         av = require("av", "decoding videos with PyAV")
         self._av = av
         self.path = path
@@ -334,7 +354,10 @@ class _PyAVBackend:
             ctx.thread_count = threads
             if threads != 1:
                 ctx.thread_type = "AUTO"
-            self._pts, self._keyframes = self._scan()
+            if index is None:
+                self._pts, self._keyframes = self._scan()
+            else:
+                self._pts, self._keyframes = list(index.pts), list(index.keyframes)
             self.rotation = self._rotation()
             w, h = (coded_h, coded_w) if self.rotation in (90, 270) else (coded_w, coded_h)
             declared = int(stream.frames) or None
@@ -472,6 +495,10 @@ class _PyAVBackend:
                 if expected >= stop:
                     return
 
+    @property
+    def index(self) -> VideoIndex:
+        return VideoIndex("pyav", len(self._pts), tuple(self._pts), tuple(self._keyframes))
+
     def _index_of(self, pts: int | None, default: int) -> int | None:
         if pts is None:
             return default
@@ -485,7 +512,7 @@ class _PyAVBackend:
 class _OpenCVBackend:
     """Decoding with OpenCV's FFmpeg backend (no PyAV): rotation applied by OpenCV."""
 
-    def __init__(self, path: Path, max_pixels: int) -> None:
+    def __init__(self, path: Path, max_pixels: int, index: VideoIndex | None) -> None:
         self.path = path
         self._cap = self._open()
         try:
@@ -499,7 +526,7 @@ class _OpenCVBackend:
             _check_size(path, w, h, max_pixels)
             declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
             fps = float(cap.get(cv2.CAP_PROP_FPS)) or None
-            count = self._count()
+            count = self._count() if index is None else index.frames
             self.info = VideoInfo(
                 path=str(path),
                 decoder="opencv",
@@ -528,6 +555,10 @@ class _OpenCVBackend:
             n += 1
         self._cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
         return n
+
+    @property
+    def index(self) -> VideoIndex:
+        return VideoIndex("opencv", self.info.frames)
 
     def frames(self, start: int, stop: int) -> Iterator[VideoFrame | BadFrame]:
         cap = self._cap

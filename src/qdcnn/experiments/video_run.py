@@ -52,9 +52,11 @@ from qdcnn import __version__
 from qdcnn.data.images import list_images, read_image
 from qdcnn.data.video import (
     MAX_VIDEO_PIXELS,
+    VideoIndex,
     VideoReader,
     VideoWriter,
     check_decoder,
+    check_encoder,
     concat_mp4,
     default_encoder,
     is_video_file,
@@ -195,7 +197,7 @@ def resolve_inputs(items: Sequence[Any]) -> tuple[list[Input], dict[str, Any]]:
     """
     out: list[Input] = []
     sources: dict[str, Any] = {}
-    used: set[str] = set()
+    used: set[str] = {SUMMARY}  # an input folder must not take the summary's name
 
     def unique(name: str) -> str:
         base = _safe_name(name)
@@ -283,7 +285,13 @@ def _iter_frames(task: ChunkTask, first: int, sources: Mapping[str, Any]) -> Ite
     """Frames ``first`` to ``task.stop - 1`` of the task's input, bad ones with a reason."""
     inp = task.input
     if isinstance(inp, VideoInput):
-        with VideoReader(inp.path, decoder=task.decoder, max_pixels=task.max_pixels) as reader:  # type: ignore[arg-type]
+        index = sources.get(inp.name)  # the client's index: no pass over the whole file
+        with VideoReader(
+            inp.path,
+            decoder=task.decoder,  # type: ignore[arg-type]
+            max_pixels=task.max_pixels,
+            index=index if isinstance(index, VideoIndex) else None,
+        ) as reader:
             stop = min(task.stop, len(reader))
             frames = reader.read(first, stop)
             expected = first
@@ -400,6 +408,7 @@ class _ChunkState:
         self.directions: Counter[str] = Counter()
         self.writer = _overlay_writer(task)
         self.overlay_start: float | None = None
+        self.last_stamp: float | None = None
         self.n_classes = len(processor.classes or ())
 
     def take(self, batch: list[_Frame]) -> None:
@@ -431,6 +440,9 @@ class _ChunkState:
         stamp = _overlay_time(self.task, item)
         if self.overlay_start is None:
             self.overlay_start = stamp
+        if self.last_stamp is not None and stamp <= self.last_stamp:
+            stamp = self.last_stamp + 0.001  # a repeated time stamp in the input
+        self.last_stamp = stamp
         picture = _fit(self.processor.draw(item.image, outcome, decision), self.task.overlay_size)
         self.writer.write(picture, stamp - self.overlay_start)
         return 1e3 * (time.perf_counter() - t0)
@@ -672,6 +684,7 @@ class RunOptions:
         check_bool("overlay", self.overlay)
         check_bool("force", self.force)
         check_decoder(self.decoder)
+        check_encoder(self.encoder)
 
 
 # ---------------------------------------------------------------------------- the run
@@ -797,7 +810,7 @@ def _identity(inp: Input, sources: Mapping[str, Any]) -> dict[str, Any]:
 def _plan(
     inp: Input,
     processor: FrameProcessor,
-    sources: Mapping[str, Any],
+    sources: dict[str, Any],
     folder: OutputFolder,
     opts: RunOptions,
 ) -> _Plan:
@@ -851,13 +864,14 @@ def _plan(
 
 
 def _probe(
-    inp: Input, sources: Mapping[str, Any], opts: RunOptions, result: InputResult
+    inp: Input, sources: dict[str, Any], opts: RunOptions, result: InputResult
 ) -> tuple[int, tuple[int, int] | None, bool, float, int | None]:
     """Frames, overlay size, whether the overlay follows the input's timestamps, its frame
     rate, and where a truncated video's missing frames start."""
     if isinstance(inp, VideoInput):
         with VideoReader(inp.path, decoder=opts.decoder, max_pixels=opts.max_pixels) as reader:  # type: ignore[arg-type]
             info = reader.info
+            sources[inp.name] = reader.index  # chunks reopen the file with it
         result.info = info.to_dict()
         fps = opts.overlay_fps or info.fps or DEFAULT_OVERLAY_FPS
         truncated = info.frames if info.truncated else None
@@ -1016,8 +1030,9 @@ def _assemble(plan: _Plan, folder: OutputFolder) -> None:
         f"{name}/{TIMINGS_CSV}": folder.write_text(f"{name}/{TIMINGS_CSV}", "".join(times_parts)),
     }
     if segments:
+        fps = plan.chunks[0].overlay_fps
         outputs[f"{name}/{OVERLAY}"] = folder.write_file(
-            f"{name}/{OVERLAY}", lambda path: _join_segments(segments, path)
+            f"{name}/{OVERLAY}", lambda path: _join_segments(segments, path, fps)
         )
     result = plan.result
     result.frames = plan.n_frames
@@ -1035,7 +1050,7 @@ def _assemble(plan: _Plan, folder: OutputFolder) -> None:
     _cleanup_chunks(plan, folder)
 
 
-def _join_segments(segments: list[tuple[bytes, float]], path: Path) -> None:
+def _join_segments(segments: list[tuple[bytes, float]], path: Path, fps: float) -> None:
     from qdcnn._optional import has_module
 
     if has_module("av"):
@@ -1044,7 +1059,7 @@ def _join_segments(segments: list[tuple[bytes, float]], path: Path) -> None:
     # OpenCV only: decode the segments and encode them again into one file
     import tempfile
 
-    writer = VideoWriter(path, DEFAULT_OVERLAY_FPS, encoder="opencv")
+    writer = VideoWriter(path, fps, encoder="opencv")
     with tempfile.TemporaryDirectory() as tmp:
         for k, (data, _start) in enumerate(segments):
             seg = Path(tmp) / f"{k}.mp4"
