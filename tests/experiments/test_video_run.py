@@ -200,7 +200,7 @@ def test_kill_9_at_every_kind_of_point_then_resume_gives_identical_output(
     assert full.returncode == 0, full.stderr
     renames = int(full.stdout.split()[-1])  # atomic renames of one whole run
     assert renames >= 7 * 4 + 4
-    points = sorted({1, 2, 3, renames // 2, renames - 5, renames - 2, renames - 1, renames})
+    points = sorted({1, 3, renames // 2, renames - 2, renames - 1, renames})
     for k in points:
         out = tmp_path / f"replace{k}"
         proc = _killed_run(clip, out, "replace", k)
