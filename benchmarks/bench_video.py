@@ -11,6 +11,9 @@ overlay.mp4, the manifest). One-core parts run in a child process pinned to one 
 (``os.sched_setaffinity``, OpenCV and BLAS limited to one thread, PyAV decoding and
 encoding on the calling thread). The breakdown comes from the run's ``timings.csv``
 (processing and overlay per frame); "decode and the rest" is the remainder of the wall time.
+Means are what the wall time is made of; medians show a frame's cost without the spikes
+that other processes on a shared machine add (both measured; compare runs by the load
+averages printed with them).
 
 The videos are rendered once with :func:`qdcnn.data.synthetic.iter_drive` (track1) and
 cached in ``$QDCNN_CACHE/bench-video`` (default ``~/.cache/qdcnn``; about 80 s the first
@@ -28,6 +31,7 @@ import csv
 import json
 import os
 import platform
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -76,8 +80,9 @@ def timed_run(
         with open(Path(out) / name / "timings.csv", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))
     frames = result.frames_processed
-    process_s = sum(float(r["process_ms"]) for r in rows) / 1e3
-    overlay_s = sum(float(r["overlay_ms"]) for r in rows) / 1e3
+    process_ms = [float(r["process_ms"]) for r in rows]
+    overlay_ms = [float(r["overlay_ms"]) for r in rows]
+    process_s, overlay_s = sum(process_ms) / 1e3, sum(overlay_ms) / 1e3
     return {
         "video": video.name,
         "frames": frames,
@@ -90,6 +95,10 @@ def timed_run(
             "process": 1e3 * process_s / frames,
             "overlay_draw_and_encode": 1e3 * overlay_s / frames,
             "decode_and_the_rest": 1e3 * max(wall * ex.workers - process_s - overlay_s, 0) / frames,
+        },
+        "median_ms_per_frame": {
+            "process": statistics.median(process_ms),
+            "overlay_draw_and_encode": statistics.median(overlay_ms),
         },
         "chunks": result.inputs[0].chunks,
         "ok": result.ok,
@@ -106,8 +115,30 @@ def part_one_core(frames: int) -> dict[str, Any]:
     proc = processor()
     return {
         "core": core,
+        "decode_only": decode_only(video),
         "with_overlay": timed_run(video, True, proc=proc),
         "without_overlay": timed_run(video, False, proc=proc),
+    }
+
+
+def decode_only(video: Path) -> dict[str, Any]:
+    """Frames/s of decoding alone (PyAV, one thread, RGB arrays), and the median frame."""
+    from qdcnn.data.video import VideoReader
+
+    times = []
+    t0 = time.perf_counter()
+    with VideoReader(video) as reader:
+        start = time.perf_counter()
+        for _ in reader:
+            now = time.perf_counter()
+            times.append(now - start)
+            start = now
+    wall = time.perf_counter() - t0
+    return {
+        "frames": len(times),
+        "seconds": wall,
+        "frames_per_second": len(times) / wall,
+        "median_ms_per_frame": 1e3 * statistics.median(times),
     }
 
 
@@ -191,16 +222,23 @@ def main() -> None:
 
 def print_table(result: dict[str, Any]) -> None:
     def line(label: str, run: dict[str, Any]) -> None:
-        ms = run["ms_per_frame"]
+        ms, med = run["ms_per_frame"], run["median_ms_per_frame"]
         print(
             f"{label:<38} {run['frames_per_second']:8.1f} fps  "
-            f"(process {ms['process']:.2f} ms, overlay {ms['overlay_draw_and_encode']:.2f} ms, "
-            f"decode+rest {ms['decode_and_the_rest']:.2f} ms per frame; {run['frames']} frames)"
+            f"(mean ms: process {ms['process']:.2f}, overlay {ms['overlay_draw_and_encode']:.2f}, "
+            f"decode+rest {ms['decode_and_the_rest']:.2f}; median ms: process "
+            f"{med['process']:.2f}, overlay {med['overlay_draw_and_encode']:.2f}; "
+            f"{run['frames']} frames)"
         )
 
     print("measured; load average", result["machine"]["load_average_at_start"])
     if "one-core" in result:
         part = result["one-core"]
+        dec = part["decode_only"]
+        print(
+            f"{'320x160, one core, decode only':<38} {dec['frames_per_second']:8.1f} fps  "
+            f"(median {dec['median_ms_per_frame']:.2f} ms per frame)"
+        )
         line("320x160, one core, with overlay", part["with_overlay"])
         line("320x160, one core, without overlay", part["without_overlay"])
     if "sizes" in result:
