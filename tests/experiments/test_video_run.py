@@ -307,6 +307,7 @@ def test_odd_sized_video_gets_a_padded_overlay(tmp_path: Path) -> None:
             c.mux(p)
     result = run_inputs([path], HalvesProcessor(), tmp_path / "out", options=OPTIONS)
     assert result.ok and result.inputs[0].frames == 12
+    assert result.inputs[0].to_dict()["video"]["overlay_padded_to"] == [34, 22]
     with VideoReader(tmp_path / "out" / "odd" / "overlay.mp4") as overlay:
         assert (overlay.info.width, overlay.info.height, len(overlay)) == (34, 22, 12)
 

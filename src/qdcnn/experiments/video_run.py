@@ -826,6 +826,9 @@ def _plan(
         plan.finished = True
         return plan
     result.decoder = decoder if isinstance(inp, VideoInput) else None
+    if opts.overlay and size is not None and (size[0] % 2 or size[1] % 2):
+        # 4:2:0 video needs even sizes: the overlay gets one replicated edge pixel more
+        result.info["overlay_padded_to"] = [size[0] + size[0] % 2, size[1] + size[1] % 2]
     plan.n_frames, plan.truncated_from = n, truncated
     plan.config = _config_of(processor, opts, header, decoder)
     step = opts.chunk_frames
