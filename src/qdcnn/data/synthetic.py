@@ -21,6 +21,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -318,6 +319,26 @@ def generate_drive(
 ) -> list[RoadScene]:
     """Render a recording-like sequence of ``n`` frames taken ``1/fps`` seconds apart.
 
+    The list of :func:`iter_drive`'s scenes (see there for the drive itself).
+    """
+    return list(iter_drive(preset, n, seed=seed, width=width, height=height, fps=fps, hood=hood))
+
+
+def iter_drive(
+    preset: str,
+    n: int,
+    *,
+    seed: int = 0,
+    width: int = 320,
+    height: int = 160,
+    fps: float = 10.0,
+    hood: bool | None = None,
+) -> Iterator[RoadScene]:
+    """Render the frames of a drive one at a time (never all in memory).
+
+    Arguments are checked when it is called, before the first scene is rendered; the
+    scenes are identical to :func:`generate_drive`'s.
+
     The road curvature follows straight runs and left/right bends, each at least 25 frames
     long, joined by raised-cosine ramps (5-10 frames plus 8 per unit of steering change, so
     about 7-23 frames); the car drives along the road at the preset's speed with a slow
@@ -334,10 +355,23 @@ def generate_drive(
         raise ParameterError("fps", fps, "a frame rate between 0.5 and 1000")
     n = int(n)
     if n == 0:
-        return []
+        return iter(())
+    return _drive_scenes(style, preset, n, seed, width, height, float(fps), hood)
+
+
+def _drive_scenes(
+    style: Style,
+    preset: str,
+    n: int,
+    seed: int,
+    width: int,
+    height: int,
+    fps: float,
+    hood: bool | None,
+) -> Iterator[RoadScene]:
     world_ss, frame_ss = np.random.SeedSequence(seed).spawn(2)
     rng = np.random.default_rng(world_ss)
-    step = style.speed_mph * _MPH / float(fps)  # metres per frame
+    step = style.speed_mph * _MPH / fps  # metres per frame
     curv_frames, _ = drive_curvature(rng, style, n)
     # Curvature along the route: frames at s = i * step; the road beyond the last frame
     # continues the last segment, the road behind the first frame is straight.
@@ -354,9 +388,8 @@ def generate_drive(
     pitch = style.pitch * 0.5 * np.tanh(_smooth(rng, s_frames / 4.0, 3.5))
     noise = 0.004 * _smooth(rng, np.arange(n, dtype=float), 1.5)  # driver's small corrections
     hill_dist = float(np.mean(style.hill_distance))
-    frame_rngs = [np.random.default_rng(ss) for ss in frame_ss.spawn(n)]
+    frame_seeds = frame_ss.spawn(n)
     use_hood = style.hood if hood is None else hood
-    scenes = []
     for i in range(n):
         k = float(curv_frames[i])
         steer = float(np.clip(STEERING_PER_CURVATURE * k + noise[i], -1.0, 1.0))
@@ -372,5 +405,5 @@ def generate_drive(
             steering=steer,
             curvature=k,
         )
-        scenes.append(_scene(take, state, preset, seed, width, height, frame_rngs[i], use_hood, i))
-    return scenes
+        frame_rng = np.random.default_rng(frame_seeds[i])
+        yield _scene(take, state, preset, seed, width, height, frame_rng, use_hood, i)
