@@ -26,7 +26,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from qdcnn.config import ShadowConfig
-from qdcnn.experiments.datasets import load_frameset
+from qdcnn.data.frames import load_frameset
 from qdcnn.experiments.direction_model import default_config
 from qdcnn.experiments.evaluate import contiguous_folds
 from qdcnn.experiments.features import compute_features

@@ -358,7 +358,7 @@ def test_the_lane_pipeline_processor_gives_each_frame_its_own_result(tmp_path: P
     from qdcnn.data.writers import write_video
     from qdcnn.experiments.video_processor import LaneDirectionProcessor
 
-    processor = LaneDirectionProcessor.train("image-split-uu", data="synthetic:track1:40")
+    processor = LaneDirectionProcessor.train("image-split-uu", data="synthetic:track1:80")
     path = write_video(iter_drive("track2", 20, seed=3), tmp_path / "drive.mp4")
     result = run_inputs([path], processor, tmp_path / "out", options=RunOptions(chunk_frames=8))
     assert result.ok and result.inputs[0].frames == 20

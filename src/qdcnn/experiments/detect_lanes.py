@@ -109,18 +109,18 @@ class DetectLanesResult:
         }
 
 
-def default_direction_model(method: str, seed: int = 0) -> DirectionModel:
-    """``method`` trained on :data:`DEFAULT_TRAINING_DATA`, for use without a model file."""
+def default_direction_model(
+    method: str, seed: int = 0, *, data: str = DEFAULT_TRAINING_DATA
+) -> DirectionModel:
+    """Lane method ``method`` trained on ``data``, for use without a model file."""
     from qdcnn.experiments.lane_data import load_lane_data
 
     info = get_method(method)
     if info.inputs != "lanes" or info.grouping is None:
         raise InputError(method, "needs a trained model file (--model) for image methods")
     cfg = PipelineConfig(seed=seed)
-    lanes = load_lane_data(DEFAULT_TRAINING_DATA, cfg, (info.grouping,), seed=seed)
-    return train_direction_model(
-        info, lanes.features(info.grouping), lanes.y, cfg, DEFAULT_TRAINING_DATA
-    )
+    lanes = load_lane_data(data, cfg, (info.grouping,), seed=seed)
+    return train_direction_model(info, lanes.features(info.grouping), lanes.y, cfg, data)
 
 
 def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> DetectLanesResult:

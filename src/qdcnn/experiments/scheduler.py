@@ -3,7 +3,7 @@
 One small API for all three (:class:`Executor`): ``map_unordered(fn, tasks, *shared)``
 yields ``(task, result)`` pairs as tasks finish, where ``result`` is ``fn(task, *shared)``
 or a :class:`TaskFailure` when ``fn`` raised one of qdcnn's own errors or an OS error
-(programming errors propagate, as in :func:`qdcnn.experiments.batch.run_batch`).
+(programming errors propagate, as in :func:`qdcnn.batch.run_batch`).
 
 Where tasks run is one string, the CLI's ``--scheduler``:
 

@@ -9,7 +9,6 @@ come from a model file, from :meth:`LaneDirectionProcessor.train` or from a meth
 from __future__ import annotations
 
 import hashlib
-from dataclasses import replace
 from functools import lru_cache
 from typing import Any
 
@@ -17,7 +16,6 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.errors import ParameterError
 from qdcnn.experiments.video_run import FrameOutcome
 
 
@@ -49,7 +47,8 @@ class LaneDirectionProcessor:
         self.seed = int(seed)
         self.tint = bool(tint)
         self.config = model.config
-        self.grouping = model.grouping
+        self.grouping = model.grouping or "image-split"
+        self.reads_frames = model.grouping is None
         has_proba = probabilities and hasattr(model.estimator, "predict_proba")
         self.classes = tuple(DIRECTIONS) if has_proba else None
         self._names = tuple(DIRECTIONS)
@@ -58,27 +57,10 @@ class LaneDirectionProcessor:
     def train(
         cls, method: str = "image-split-uu", *, data: str = "synthetic:track1:300", seed: int = 0
     ) -> LaneDirectionProcessor:
-        """Fit ``method`` on ``data`` (a dataset spec) with the 320x160 default settings."""
-        from qdcnn.experiments.datasets import load_frameset
-        from qdcnn.experiments.direction_model import default_config, train_direction_model
-        from qdcnn.experiments.evaluate import QUANTUM_METHODS
-        from qdcnn.experiments.features import compute_features
+        """Fit lane method ``method`` on ``data`` (a dataset spec) with the default settings."""
+        from qdcnn.experiments.detect_lanes import default_direction_model
 
-        if method not in QUANTUM_METHODS:
-            raise ParameterError("method", method, "one of " + ", ".join(QUANTUM_METHODS))
-        cfg = replace(default_config(), seed=seed)
-        frames = load_frameset(data, seed=seed)
-        grouping = QUANTUM_METHODS[method][0]
-        table = compute_features(frames, cfg, (grouping,))
-        keep = table.readable
-        model = train_direction_model(
-            method,
-            table.features[grouping][keep],
-            frames.labels(cfg.labels)[keep],
-            cfg,
-            data,
-        )
-        return cls(model, seed=seed)
+        return cls(default_direction_model(method, seed, data=data), seed=seed)
 
     def settings(self) -> dict[str, Any]:
         return {
@@ -105,11 +87,11 @@ class LaneDirectionProcessor:
         rng = np.random.default_rng([self.seed, index])
         frame = process_frame(image, self.config, (self.grouping,), rng=rng)
         lanes = frame.lanes[self.grouping]
-        features = np.atleast_2d(lanes.features)
-        label = int(self.model.estimator.predict(features)[0])
+        inputs = image[None] if self.reads_frames else np.atleast_2d(lanes.features)
+        label = int(self.model.predict(inputs)[0])
         probs = None
         if self.classes is not None:
-            probs = tuple(float(p) for p in self.model.estimator.predict_proba(features)[0])
+            probs = tuple(float(p) for p in self.model.predict_proba(inputs)[0])
         mask = frame.shadow_mask
         fraction = None if mask is None else float(np.count_nonzero(mask)) / mask.size
         drawing = (frame.segments, lanes, mask)

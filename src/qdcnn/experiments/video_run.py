@@ -1,7 +1,7 @@
 """The core of ``qdcnn run``: per-frame decisions and an annotated video, resumable after any crash.
 
 :func:`run_inputs` takes inputs (video files, image folders, or frame-source objects such
-as :class:`qdcnn.experiments.datasets.FrameSet`) and a per-frame processor, and writes per
+as :class:`qdcnn.data.frames.FrameSet`) and a per-frame processor, and writes per
 input ``DIR/<name>/frames.csv``, ``DIR/<name>/timings.csv``, optionally
 ``DIR/<name>/overlay.mp4``, and ``DIR/summary.json``.
 
