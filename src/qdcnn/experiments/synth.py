@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from qdcnn._validation import check_choice, check_int, check_seed
+from qdcnn._validation import check_bool, check_choice, check_int, check_seed
 from qdcnn.data.labels import DIRECTIONS
 
 __all__ = ["LAYOUTS", "SynthResult", "SynthSpec", "run_synth"]
@@ -21,7 +21,8 @@ LAYOUTS: tuple[str, ...] = ("udacity", "shadows", "carla")
 class SynthSpec:
     """What ``qdcnn synth`` renders and where.
 
-    ``layout`` is one of :data:`LAYOUTS` or ``"all"`` (each in a sub-folder of ``out``).
+    ``layout`` is one of :data:`LAYOUTS` or ``"all"`` (each in a sub-folder of ``out``);
+    ``video`` also writes the drive as ``out/video/<preset>.mp4``.
     """
 
     out: Path
@@ -31,6 +32,7 @@ class SynthSpec:
     width: int = 320
     height: int = 160
     layout: str = "all"
+    video: bool = False
 
     def __post_init__(self) -> None:
         from qdcnn.data.synthetic import PRESETS
@@ -41,6 +43,7 @@ class SynthSpec:
         check_int("width", self.width, 16, 7680)
         check_int("height", self.height, 16, 4320)
         check_choice("layout", self.layout, (*LAYOUTS, "all"))
+        check_bool("video", self.video)
 
     @property
     def layouts(self) -> tuple[str, ...]:
@@ -71,22 +74,51 @@ class SynthResult:
 
 
 def run_synth(spec: SynthSpec) -> SynthResult:
-    """Render the drive of ``spec`` and write it in each requested layout."""
-    from qdcnn.data.synthetic import generate_drive
-    from qdcnn.data.writers import write_carla, write_shadow_set, write_udacity
+    """Render the drive of ``spec`` and stream it into each requested layout.
 
-    scenes = generate_drive(
-        spec.preset, spec.n, seed=spec.seed, width=spec.width, height=spec.height
+    Scenes are rendered and written one at a time, so memory does not grow with ``n``.
+    """
+    from qdcnn.data.synthetic import iter_drive
+    from qdcnn.data.writers import (
+        CarlaWriter,
+        SceneSink,
+        ShadowSetWriter,
+        UdacityWriter,
+        VideoSceneWriter,
+        write_layouts,
     )
-    writers = {"udacity": write_udacity, "shadows": write_shadow_set, "carla": write_carla}
-    written = {}
+
+    nested = len(spec.layouts) > 1 or spec.video
+    sinks: dict[str, SceneSink] = {}
     for layout in spec.layouts:
-        target = spec.out / layout if len(spec.layouts) > 1 else spec.out
-        written[layout] = str(writers[layout](scenes, target))
-    counts = np.bincount([s.direction for s in scenes], minlength=len(DIRECTIONS))
-    return SynthResult(
-        spec,
-        written,
-        {name: int(c) for name, c in zip(DIRECTIONS, counts, strict=True)},
-        float(np.mean([s.shadow_mask.mean() for s in scenes])),
-    )
+        target = spec.out / layout if nested else spec.out
+        if layout == "udacity":
+            sinks[layout] = UdacityWriter(target)
+        elif layout == "shadows":
+            sinks[layout] = ShadowSetWriter(target)
+        else:
+            sinks[layout] = CarlaWriter(target, count=spec.n)
+    if spec.video:
+        sinks["video"] = VideoSceneWriter(spec.out / "video" / f"{spec.preset}.mp4")
+    tally = _Tally()
+    scenes = iter_drive(spec.preset, spec.n, seed=spec.seed, width=spec.width, height=spec.height)
+    paths = write_layouts(tally.count(scenes), list(sinks.values()))
+    written = {name: str(path) for name, path in zip(sinks, paths, strict=True)}
+    return SynthResult(spec, written, tally.directions(), tally.shadow / max(spec.n, 1))
+
+
+class _Tally:
+    """Directions and shadow fraction of the scenes streaming past."""
+
+    def __init__(self) -> None:
+        self.counts = np.zeros(len(DIRECTIONS), dtype=np.int64)
+        self.shadow = 0.0
+
+    def count(self, scenes: Any) -> Any:
+        for scene in scenes:
+            self.counts[scene.direction] += 1
+            self.shadow += float(scene.shadow_mask.mean())
+            yield scene
+
+    def directions(self) -> dict[str, int]:
+        return {name: int(c) for name, c in zip(DIRECTIONS, self.counts, strict=True)}

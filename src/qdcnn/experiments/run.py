@@ -1,0 +1,113 @@
+"""``qdcnn run``: dashcam videos, image folders and recordings to per-frame decisions.
+
+One runner over :func:`qdcnn.experiments.video_run.run_inputs`: the inputs are video
+files, image folders or dataset specs (``udacity:PATH``, ``carla:PATH``,
+``synthetic:PRESET[:N]``); the per-frame work is the pipeline and a direction model
+(a model file of any registered method, or the default model of ``--method``), through
+:class:`~qdcnn.experiments.video_processor.LaneDirectionProcessor`; the chunks run in this
+process or on a Dask cluster (:class:`~qdcnn.experiments.scheduler.Executor`).
+"""
+
+from __future__ import annotations
+
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from qdcnn._validation import check_seed
+from qdcnn.data.frames import load_frameset, parse_spec
+from qdcnn.experiments.detect_lanes import DEFAULT_TRAINING_DATA, default_direction_model
+from qdcnn.experiments.direction_model import DirectionModel
+from qdcnn.experiments.methods import get_method
+from qdcnn.experiments.reporting import Reporter
+from qdcnn.experiments.video_run import Progress, RunOptions, RunResult, run_inputs
+
+__all__ = ["RunSpec", "run"]
+
+_SPEC_KINDS = ("udacity:", "carla:", "synthetic:")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What ``qdcnn run`` processes, with which model, and where.
+
+    Attributes
+    ----------
+    inputs : tuple of str
+        Video files, image folders or dataset specs.
+    out : Path
+        Output folder (``<name>/frames.csv``, ``timings.csv``, ``overlay.mp4``, ``summary.json``).
+    model : Path or None
+        A direction model file (``train-direction``); ``None`` trains ``method`` on
+        :data:`~qdcnn.experiments.detect_lanes.DEFAULT_TRAINING_DATA`.
+    method : str
+        The registered lane method trained when no model is given.
+    options : RunOptions
+        Chunking, ``smooth`` majority vote, overlay, ``force``, lock wait.
+    scheduler : str or None
+        ``None`` (this process), ``local:N`` or ``tcp://HOST:PORT`` (the ``dask`` extra).
+    seed : int
+        Seed of the shot sampling and of the default model.
+    """
+
+    inputs: tuple[str, ...]
+    out: Path
+    model: Path | None = None
+    method: str = "image-split-uu"
+    options: RunOptions = field(default_factory=RunOptions)
+    scheduler: str | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        get_method(self.method)
+        check_seed("seed", self.seed)
+
+
+def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
+    """Process every input of ``spec``; each input's result is reported as it finishes."""
+    from qdcnn.experiments.scheduler import Executor
+    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+
+    report = reporter or Reporter()
+    inputs = [_input(item, spec) for item in spec.inputs]
+    if spec.model is not None:
+        model = DirectionModel.load(spec.model)
+    else:
+        report.note(f"no --model: training {spec.method} on {DEFAULT_TRAINING_DATA}")
+        model = default_direction_model(spec.method, spec.seed)
+    processor = LaneDirectionProcessor(model, seed=spec.seed)
+    with ExitStack() as stack:
+        executor = stack.enter_context(Executor(spec.scheduler)) if spec.scheduler else None
+        bars: dict[str, Any] = {}
+        result = run_inputs(
+            inputs,
+            processor,
+            spec.out,
+            options=spec.options,
+            executor=executor,
+            progress=lambda p: _advance(p, bars, stack, report),
+        )
+    for item in result.inputs:
+        report.result(item.to_dict())
+    return result
+
+
+def _input(item: str, spec: RunSpec) -> Any:
+    """A path as it is; a dataset spec loaded as a frame source."""
+    if item.startswith(_SPEC_KINDS):
+        parse_spec(item)
+        return load_frameset(item, seed=spec.seed)
+    return item
+
+
+def _advance(progress: Progress, bars: dict[str, Any], stack: ExitStack, report: Reporter) -> None:
+    """One progress bar per input, opened at its first report."""
+    entry = bars.get(progress.input)
+    if entry is None:
+        advance = stack.enter_context(report.progress(progress.total, f"run {progress.input}"))
+        entry = bars[progress.input] = [advance, 0]
+    advance, done = entry
+    for _ in range(progress.done - done):
+        advance()
+    entry[1] = progress.done

@@ -1,0 +1,92 @@
+"""qdcnn run and synth --video: a real video file end to end, resumable, with one-line errors."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from qdcnn.cli import app
+
+pytest.importorskip("av")
+runner = CliRunner()
+
+
+def json_lines(text: str) -> list[dict]:
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("synth")
+    res = runner.invoke(
+        app,
+        [
+            "synth",
+            "--preset",
+            "track2",
+            "--n",
+            "24",
+            "--video",
+            "--layout",
+            "udacity",
+            "--out",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.stderr
+    return out / "video" / "track2.mp4"
+
+
+def test_run_a_video_then_resume_without_redoing_work(drive: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = ["run", str(drive), "--out", str(out), "--chunk", "10", "--smooth", "3", "--json"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.stderr
+    first, summary = json_lines(res.stdout)
+    assert first["frames"] == 24 and first["frames_per_second"] > 0 and first["seconds"] > 0
+    assert summary["summary"] and summary["frames"] == 24
+    frames_csv = (out / "track2" / "frames.csv").read_bytes()
+    assert frames_csv.count(b"\n") == 25 and (out / "track2" / "overlay.mp4").stat().st_size > 0
+    again = runner.invoke(app, args)
+    assert again.exit_code == 0, again.stderr
+    resumed = json_lines(again.stdout)[0]
+    assert resumed["chunks_skipped"] == 3 and resumed["frames_processed"] == 0
+    assert (out / "track2" / "frames.csv").read_bytes() == frames_csv
+
+
+def test_run_a_dataset_spec_without_video(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app, ["run", "synthetic:track1:12", "--out", str(tmp_path), "--no-video", "--json"]
+    )
+    assert res.exit_code == 0, res.stderr
+    assert json_lines(res.stdout)[0]["frames"] == 12
+    assert not (tmp_path / "synthetic-track1" / "overlay.mp4").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["nowhere.mp4"], "nowhere.mp4: file not found"),
+        (["synthetic:mars"], "data='synthetic:mars' is invalid"),
+        (["x.mp4", "--smooth", "0"], "smooth=0 is invalid"),
+        (["x.mp4", "--method", "best"], "method='best' is invalid"),
+    ],
+)
+def test_bad_inputs_are_one_line_errors(args: list[str], message: str, tmp_path: Path) -> None:
+    res = runner.invoke(app, ["run", *args, "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    assert message in res.stderr and len(res.stderr.strip().splitlines()) <= 2
+
+
+def test_a_scheduler_that_does_not_answer_fails_fast(drive: Path, tmp_path: Path) -> None:
+    pytest.importorskip("distributed")
+    t0 = time.perf_counter()
+    res = runner.invoke(
+        app, ["run", str(drive), "--out", str(tmp_path), "--scheduler", "tcp://127.0.0.1:9"]
+    )
+    assert res.exit_code == 2 and "127.0.0.1:9" in res.stderr
+    assert time.perf_counter() - t0 < 60
