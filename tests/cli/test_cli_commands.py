@@ -80,7 +80,8 @@ def test_detect_shadows_continues_past_bad_files(mixed_folder: Path, tmp_path: P
     for name, message in errors.items():
         assert message in res.stderr.replace("\n", " ") or name in res.stderr
     # the finished masks are on disk despite the failures
-    assert sorted(p.name for p in out.iterdir()) == sorted(f"{Path(n).stem}_mask.png" for n in done)
+    written = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    assert written == sorted(f"{Path(n).stem}_mask.png" for n in done)
 
 
 def test_unreadable_file_reports_permission(
@@ -114,7 +115,7 @@ def test_very_large_image_is_processed_and_oversized_one_rejected(
     assert res.exit_code == 0, res.stderr
     assert read_mask(json_lines(res.stdout)[0]["mask"]).shape == (1500, 2600)
     monkeypatch.setattr(image_io, "MAX_PIXELS", 1000 * 1000)
-    res = runner.invoke(app, ["detect-shadows", str(big), "--out", str(tmp_path / "o"), "--json"])
+    res = runner.invoke(app, ["detect-shadows", str(big), "--out", str(tmp_path / "o2"), "--json"])
     assert res.exit_code == 1
     assert json_lines(res.stdout)[-1]["failures"][0]["error"] == (
         f"{big}: image is 2600x1500, larger than 1000000 pixels"
@@ -466,3 +467,33 @@ def test_a_symlink_in_out_is_replaced_not_followed(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.stderr
     assert victim.read_text() == "keep me"
     assert not (out / "x_mask.png").is_symlink()
+
+
+def test_detect_shadows_resumes_and_redoes_only_what_is_missing(tmp_path: Path) -> None:
+    for i in range(4):
+        write_image(tmp_path / "in" / f"f{i}.png", road(seed=i))
+    out = tmp_path / "masks"
+    args = ["detect-shadows", str(tmp_path / "in"), "--out", str(out), "--json"]  # 1024 shots
+    first = json_lines(runner.invoke(app, args).stdout)[:-1]
+    masks = {Path(r["mask"]).name: Path(r["mask"]).read_bytes() for r in first}
+    (out / "f2_mask.png").unlink()
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.stderr
+    again = json_lines(res.stdout)[:-1]
+    assert [r["resumed"] for r in again] == [True, True, False, True]
+    assert {Path(r["mask"]).name: Path(r["mask"]).read_bytes() for r in again} == masks
+    forced = json_lines(runner.invoke(app, [*args, "--force"]).stdout)[:-1]
+    assert not any(r["resumed"] for r in forced)
+    changed = json_lines(runner.invoke(app, [*args, "--threshold", "0.9"]).stdout)[:-1]
+    assert not any(r["resumed"] for r in changed)  # another setting: every record is stale
+
+
+def test_a_second_run_into_a_locked_folder_refuses(tmp_path: Path) -> None:
+    from qdcnn.outputs import OutputFolder
+
+    write_image(tmp_path / "a.png", road())
+    out = tmp_path / "masks"
+    with OutputFolder(out):
+        res = runner.invoke(app, ["detect-shadows", str(tmp_path / "a.png"), "--out", str(out)])
+    assert res.exit_code == 2
+    assert str(out) in res.stderr and len(res.stderr.strip().splitlines()) == 1

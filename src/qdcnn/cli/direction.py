@@ -216,15 +216,17 @@ def detect_lanes_cmd(
     model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
     method: Annotated[str, typer.Option(help="Method when no model is given.")] = "image-split-uu",
     seed: SeedOpt = 0,
+    force: Annotated[bool, typer.Option(help="Redo images already done.")] = False,
+    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Lane overlays and a left/straight/right decision per frame.
+    """Lane overlays and a left/straight/right decision per frame; resumable.
 
     Without --model, a model of --method is trained first on a synthetic track1 drive
     (300 frames) and the output says so.
     """
     try:
-        spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed)
+        spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)
         result = detect_lanes(spec, CliReporter(as_json))
     except QdcnnError as exc:
         raise fail(exc) from None

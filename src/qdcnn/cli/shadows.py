@@ -49,15 +49,23 @@ def detect_shadows_cmd(
     model: ModelOpt = None,
     calibration_classes: ClassesOpt = 2,
     seed: SeedOpt = 0,
+    force: Annotated[bool, typer.Option(help="Redo images whose mask is already done.")] = False,
+    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Detect shadows; write a 0/255 mask per image at input size."""
+    """Detect shadows; write a 0/255 mask per image at input size.
+
+    Resumable: a re-run with the same settings skips images whose mask is recorded as
+    finished in the folder's manifest (--force redoes them).
+    """
     table = Table("file", "shadow %", "ms", title=f"shadow detection: {method}")
     try:
         cfg = ShadowConfig(shots=None if exact else shots, calibration_classes=calibration_classes)
         cfg = replace(cfg, threshold=cfg.threshold if threshold is None else threshold)
         cfg = replace(cfg, centroid=centroid)
-        spec = ShadowDetectionSpec(tuple(paths), out_dir, method, cfg, model, backend, seed)
+        spec = ShadowDetectionSpec(
+            tuple(paths), out_dir, method, cfg, model, backend, seed, force, wait
+        )
         result = run_shadow_detection(spec, CliReporter(as_json, lambda r: _mask_row(table, r)))
     except QdcnnError as exc:
         raise fail(exc) from None

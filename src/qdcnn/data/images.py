@@ -250,6 +250,27 @@ def read_mask(path: PathArg) -> NDArray[np.bool_]:
     return np.asarray(img >= MASK_LEVEL)
 
 
+def encode_image(image: NDArray[np.uint8], suffix: str = ".png") -> bytes:
+    """The bytes of an RGB (or greyscale, or boolean) image file of type ``suffix``."""
+    arr = np.asarray(image)
+    if arr.dtype == np.bool_:
+        arr = arr.astype(np.uint8) * 255
+    if arr.ndim == 3:
+        arr = cv2.cvtColor(arr, cv2.COLOR_RGB2BGR)
+    try:
+        ok, buf = cv2.imencode(suffix or ".png", arr)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise InputError(f"*{suffix}", "cannot encode an image of this file type")
+    return bytes(buf.tobytes())
+
+
+def encode_mask(mask: NDArray[np.bool_]) -> bytes:
+    """The bytes of a single-channel 0/255 PNG of ``mask``."""
+    return encode_image(np.asarray(mask, dtype=bool).astype(np.uint8) * 255, ".png")
+
+
 def write_image(path: str | os.PathLike[str], image: NDArray[np.uint8]) -> Path:
     """Write an RGB (or greyscale) ``uint8`` image; the suffix picks the format.
 
@@ -257,15 +278,11 @@ def write_image(path: str | os.PathLike[str], image: NDArray[np.uint8]) -> Path:
     never sees half an image, and a symbolic link at ``path`` is replaced, never followed.
     """
     p = Path(path)
-    arr = np.asarray(image)
-    if arr.dtype == np.bool_:
-        arr = arr.astype(np.uint8) * 255
-    if arr.ndim == 3:
-        arr = cv2.cvtColor(arr, cv2.COLOR_RGB2BGR)
-    ok, buf = cv2.imencode(p.suffix or ".png", arr)
-    if not ok:
-        raise InputError(p, "cannot encode image for this file type")
-    return atomic_write_bytes(p, buf.tobytes())
+    try:
+        data = encode_image(image, p.suffix or ".png")
+    except InputError:
+        raise InputError(p, "cannot encode image for this file type") from None
+    return atomic_write_bytes(p, data)
 
 
 def write_mask(path: str | os.PathLike[str], mask: NDArray[np.bool_]) -> Path:

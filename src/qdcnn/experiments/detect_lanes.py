@@ -9,23 +9,26 @@ quoted properly and a crash keeps every finished row).
 from __future__ import annotations
 
 import csv
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from qdcnn._fileio import unique_stems
-from qdcnn._validation import check_seed
+from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
-from qdcnn.data.images import list_images, read_image, write_image
+from qdcnn.data.images import encode_image, list_images, read_image
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.errors import InputError
 from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
 from qdcnn.experiments.methods import get_method
 from qdcnn.experiments.reporting import Reporter
+from qdcnn.experiments.resume import ResumableBatch
 from qdcnn.experiments.shadow_batch import note_shared_stems
 
 __all__ = [
@@ -51,10 +54,22 @@ class DetectLanesSpec:
     model: Path | None = None
     method: str = "image-split-uu"
     seed: int = 0
+    force: bool = False
+    wait: float = 0.0
 
     def __post_init__(self) -> None:
         get_method(self.method)
         check_seed("seed", self.seed)
+        check_bool("force", self.force)
+        check_float("wait", self.wait, 0.0, 86_400.0)
+
+    def settings(self) -> dict[str, Any]:
+        """Everything that changes the outputs (hashed into the manifest's records)."""
+        from qdcnn.outputs import file_identity
+
+        model = None if self.model is None else file_identity(self.model, content_hash=True)
+        default = None if self.model is not None else [self.method, DEFAULT_TRAINING_DATA]
+        return {"model": model, "default_model": default, "seed": self.seed}
 
 
 @dataclass(frozen=True)
@@ -68,6 +83,7 @@ class LaneRecord:
     probabilities: list[float] | None
     seconds: float
     overlay: str
+    resumed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -78,6 +94,7 @@ class LaneRecord:
             "probabilities": self.probabilities,
             "seconds": self.seconds,
             "overlay": self.overlay,
+            "resumed": self.resumed,
         }
 
 
@@ -140,33 +157,52 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
     for problem in listing.missing:
         result.failures.append(Failure(problem.source, str(problem)))
         report.failure(result.failures[-1])
-    spec.out.mkdir(parents=True, exist_ok=True)
     note_shared_stems(listing.images, report)
-    decide = _Decider(model, spec.out, spec.seed, unique_stems(listing.images))
     with (
-        open(
-            spec.out / "predictions.csv",
-            "w",
-            newline="",
-            encoding="utf-8",
-            errors="surrogateescape",
-        ) as fh,
+        ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,
+        _PredictionTable(spec.out) as table,
         report.progress(len(listing.images), "detect-lanes") as advance,
     ):
-        table = csv.writer(fh)
-        table.writerow(CSV_COLUMNS)
+        decide = _Decider(model, batch, spec.seed, listing.images)
         for outcome in run_batch(listing.images, decide):
             if outcome.result is not None:
-                record = outcome.result
-                result.records.append(record)
-                table.writerow(_csv_row(record))
-                fh.flush()
-                report.result(record.to_dict())
+                result.records.append(outcome.result)
+                table.add(outcome.result)
+                report.result(outcome.result.to_dict())
             elif outcome.failure is not None:
                 result.failures.append(outcome.failure)
                 report.failure(outcome.failure)
             advance()
     return result
+
+
+class _PredictionTable:
+    """``predictions.csv`` written row by row into ``predictions.partial.csv`` (flushed
+    per row, never through a link), which becomes ``predictions.csv`` when the run ends."""
+
+    def __init__(self, out: Path) -> None:
+        self.partial = out / "predictions.partial.csv"
+        self.final = out / "predictions.csv"
+
+    def __enter__(self) -> _PredictionTable:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0)
+        try:
+            fd = os.open(self.partial, flags, 0o644)
+        except OSError as exc:
+            raise InputError(self.partial, f"cannot write: {exc.strerror or exc}") from None
+        self.fh = os.fdopen(fd, "w", newline="", encoding="utf-8", errors="surrogateescape")
+        self.writer = csv.writer(self.fh)
+        self.writer.writerow(CSV_COLUMNS)
+        return self
+
+    def add(self, record: LaneRecord) -> None:
+        self.writer.writerow(_csv_row(record))
+        self.fh.flush()
+
+    def __exit__(self, exc_type: type[BaseException] | None, *_: object) -> None:
+        self.fh.close()
+        if exc_type is None:
+            os.replace(self.partial, self.final)
 
 
 def _csv_row(record: LaneRecord) -> list[str]:
@@ -177,24 +213,38 @@ def _csv_row(record: LaneRecord) -> list[str]:
 class _Decider:
     """The per-image work: pipeline, decision, overlay."""
 
-    def __init__(self, model: DirectionModel, out: Path, seed: int, stems: dict[Path, str]) -> None:
+    def __init__(
+        self, model: DirectionModel, batch: ResumableBatch, seed: int, images: list[Path]
+    ) -> None:
         from qdcnn.vision.grouping import mode_columns
 
         self.model = model
-        self.stems = stems
-        self.out = out
-        self.rng = np.random.default_rng(seed)
+        self.batch = batch
+        self.seed = seed
+        self.stems = unique_stems(images)
+        self.index = {path: i for i, path in enumerate(images)}
         cfg = model.config.grouping
         self.columns = mode_columns(cfg.features, cfg.extra_features)
         self.grouping = model.grouping or "image-split"
 
     def __call__(self, path: Path) -> LaneRecord:
+        rel = f"{self.stems[path]}_lanes.png"
+        done = self.batch.finished(rel, path)
+        if done is not None:
+            return LaneRecord(**{**done, "resumed": True})
+        record, overlay = self.decide(path, rel)
+        self.batch.record(rel, path, {rel: encode_image(overlay)}, record.to_dict())
+        return record
+
+    def decide(self, path: Path, rel: str) -> tuple[LaneRecord, NDArray[np.uint8]]:
+        """Pipeline, decision and overlay of one image (shots seeded by its index)."""
         from qdcnn.pipeline import process_frame
         from qdcnn.vision.overlays import draw_lane_overlay
 
         image = read_image(path)
+        rng = np.random.default_rng([self.seed, self.index[path]])
         t0 = time.perf_counter()
-        frame = process_frame(image, self.model.config, (self.grouping,), rng=self.rng)
+        frame = process_frame(image, self.model.config, (self.grouping,), rng=rng)
         lanes = frame.lanes[self.grouping]
         inputs = lanes.features if self.model.info.inputs == "lanes" else image[None]
         label = int(self.model.predict(inputs)[0])
@@ -209,13 +259,13 @@ class _Decider:
             roi=self.model.config.lanes.roi,
             columns=self.columns,
         )
-        target = write_image(self.out / f"{self.stems[path]}_lanes.png", overlay)
-        return LaneRecord(
+        record = LaneRecord(
             str(path),
             direction,
             lanes.status,
             [None if np.isnan(v) else float(v) for v in lanes.features],
             None if probs is None else [float(p) for p in probs[0]],
             seconds,
-            str(target),
+            str(self.batch.folder.path(rel)),
         )
+        return record, overlay

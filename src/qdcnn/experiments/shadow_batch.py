@@ -15,14 +15,14 @@ from typing import Any
 import numpy as np
 
 from qdcnn._fileio import unique_stems
-from qdcnn._validation import check_int, check_seed
+from qdcnn._validation import check_bool, check_float, check_int, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import ShadowConfig
-from qdcnn.data.images import list_images, read_image, read_mask, write_mask
+from qdcnn.data.images import encode_mask, list_images, read_image, read_mask, write_mask
 from qdcnn.data.shadow_set import index_by_stem, load_shadow_set
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.reporting import Reporter
-from qdcnn.quantum.sampling import as_generator
+from qdcnn.experiments.resume import ResumableBatch
 from qdcnn.vision.detectors import QUANTUM_DETECTORS, check_method, detect_shadows
 from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
 from qdcnn.vision.shadows import ShadowModel
@@ -37,6 +37,7 @@ class MaskRecord:
     seconds: float
     shadow_fraction: float
     mask: str
+    resumed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -45,6 +46,7 @@ class MaskRecord:
             "seconds": self.seconds,
             "shadow_fraction": self.shadow_fraction,
             "mask": self.mask,
+            "resumed": self.resumed,
         }
 
 
@@ -78,24 +80,37 @@ def detect_files(
     model: ShadowModel | None = None,
     backend: str = "numpy",
     seed: int = 0,
+    batch: ResumableBatch | None = None,
 ) -> Iterator[MaskRecord | Failure]:
     """Detect shadows in each image and write its mask as it finishes.
 
-    ``seconds`` is the detection time of that image, excluding reading and
-    writing files.
+    ``seconds`` is the detection time of that image, excluding reading and writing
+    files. Shot sampling of image ``i`` draws from ``default_rng([seed, i])``, so an
+    image's mask does not depend on which images ran before it. With a ``batch``, masks
+    go through its manifest: images whose record is complete are not detected again
+    (their record comes back with ``resumed=True``).
     """
     check_method(method)
     out_dir.mkdir(parents=True, exist_ok=True)
-    rng = as_generator(seed)
     stems = unique_stems(list(images))
+    index = {path: i for i, path in enumerate(images)}
 
     def work(path: Path) -> MaskRecord:
+        rel = mask_path(Path(), path, stems[path]).as_posix()
+        done = batch.finished(rel, path) if batch is not None else None
+        if done is not None:
+            return MaskRecord(**{**done, "resumed": True})
         image = read_image(path)
+        rng = np.random.default_rng([seed, index[path]])
         t0 = time.perf_counter()
         mask = detect_shadows(image, method, config, model=model, backend=backend, rng=rng)
         seconds = time.perf_counter() - t0
-        target = write_mask(mask_path(out_dir, path, stems[path]), mask)
-        return MaskRecord(str(path), method, seconds, float(mask.mean()), str(target))
+        result = MaskRecord(str(path), method, seconds, float(mask.mean()), str(out_dir / rel))
+        if batch is not None:
+            batch.record(rel, path, {rel: encode_mask(mask)}, result.to_dict())
+        else:
+            write_mask(out_dir / rel, mask)
+        return result
 
     for outcome in run_batch(images, work):
         yield outcome.failure if outcome.failure else outcome.result  # type: ignore[misc]
@@ -190,6 +205,8 @@ class ShadowDetectionSpec:
     model: Path | None = None
     backend: str = "numpy"
     seed: int = 0
+    force: bool = False
+    wait: float = 0.0
 
     def __post_init__(self) -> None:
         from qdcnn.quantum.execute import check_backend
@@ -197,6 +214,22 @@ class ShadowDetectionSpec:
         check_method(self.method)
         check_backend(self.backend)
         check_seed("seed", self.seed)
+        check_bool("force", self.force)
+        check_float("wait", self.wait, 0.0, 86_400.0)
+
+    def settings(self) -> dict[str, Any]:
+        """Everything that changes the masks (hashed into the manifest's records)."""
+        from dataclasses import asdict
+
+        from qdcnn.outputs import file_identity
+
+        return {
+            "method": self.method,
+            "config": asdict(self.config),
+            "model": None if self.model is None else file_identity(self.model, content_hash=True),
+            "backend": self.backend,
+            "seed": self.seed,
+        }
 
 
 @dataclass
@@ -247,16 +280,20 @@ def run_shadow_detection(
         result.failures.append(f)
         report.failure(f)
     note_shared_stems(plan.images, report)
-    items = detect_files(
-        plan.images,
-        spec.method,
-        spec.out,
-        spec.config,
-        model=model,
-        backend=spec.backend,
-        seed=spec.seed,
-    )
-    with report.progress(len(plan.images), f"detect-shadows {spec.method}") as advance:
+    with (
+        ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,
+        report.progress(len(plan.images), f"detect-shadows {spec.method}") as advance,
+    ):
+        items = detect_files(
+            plan.images,
+            spec.method,
+            spec.out,
+            spec.config,
+            model=model,
+            backend=spec.backend,
+            seed=spec.seed,
+            batch=batch,
+        )
         for item in items:
             if isinstance(item, MaskRecord):
                 result.records.append(item)
