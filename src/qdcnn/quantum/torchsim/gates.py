@@ -11,6 +11,7 @@ made only of them is simulated in real arithmetic.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 
 from qdcnn._optional import require
 from qdcnn.quantum import gates as np_gates
@@ -61,17 +62,37 @@ def _phase(a: torch.Tensor) -> torch.Tensor:
     return torch.complex(_square([one, zero, zero, c]), _square([zero, zero, zero, s]))
 
 
+@lru_cache(maxsize=16)
+def _rot_tables(dtype: torch.dtype, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    halves = torch.tensor(_ROT_HALVES, dtype=dtype, device=device)
+    # entries as signed products: re = (c ca, -s cb, s cb, c ca), im = (-c sa, -s sb, -s sb, c sa)
+    signs = torch.tensor([[1, -1, 1, 1], [-1, -1, -1, 1]], dtype=dtype, device=device)
+    return halves, signs
+
+
+# index into [cos a, cos h, cos b, sin a, sin h, sin b] (a, h, b = the three half angles)
+_ROT_LEFT = (1, 4, 4, 1, 1, 4, 4, 1)  # c, s, s, c, c, s, s, c
+_ROT_RIGHT = (0, 2, 2, 0, 3, 5, 5, 3)  # ca, cb, cb, ca, sa, sb, sb, sa
+
+
 def _rot(a: torch.Tensor) -> torch.Tensor:
-    # one matmul gives the three half-angle combinations, then one cos and one sin
-    halves = a @ torch.tensor(_ROT_HALVES, dtype=a.dtype, device=a.device)
-    cos, sin = torch.cos(halves), torch.sin(halves)
-    ca, c, cb = cos.unbind(-1)
-    sa, s, sb = sin.unbind(-1)
-    diag_re, diag_im = c * ca, c * sa
-    off_re, off_im = s * cb, s * sb
-    re = _square([diag_re, -off_re, off_re, diag_re])
-    im = _square([-diag_im, -off_im, -off_im, diag_im])
-    return torch.complex(re, im)
+    # one matmul gives the three half-angle combinations, one cos and one sin their
+    # trigonometry; two gathers and two products give all eight real entries
+    halves, signs = _rot_tables(a.dtype, a.device)
+    h = a @ halves
+    trig = torch.cat([torch.cos(h), torch.sin(h)], dim=-1)
+    left, right = _gather(trig, _ROT_LEFT), _gather(trig, _ROT_RIGHT)
+    parts = (left * right).view(*a.shape[:-1], 2, 4) * signs
+    return torch.complex(parts[..., 0, :], parts[..., 1, :]).view(*a.shape[:-1], 2, 2)
+
+
+def _gather(t: torch.Tensor, index: tuple[int, ...]) -> torch.Tensor:
+    return t.index_select(-1, _index(index, t.device))
+
+
+@lru_cache(maxsize=16)
+def _index(index: tuple[int, ...], device: torch.device) -> torch.Tensor:
+    return torch.tensor(index, dtype=torch.long, device=device)
 
 
 PARAMETRIC: dict[str, Callable[[torch.Tensor], torch.Tensor]] = {

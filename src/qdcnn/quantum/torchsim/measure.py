@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -34,9 +36,14 @@ def readout_matrix(confusions: list[NDArray[np.float64]], like: torch.Tensor) ->
 
 def z_signs(num_qubits: int, like: torch.Tensor) -> torch.Tensor:
     """``(2**n, n)`` table of ``+1`` / ``-1``: the eigenvalue of ``Z_q`` on each basis state."""
+    return _z_signs(num_qubits, like.dtype, like.device)
+
+
+@lru_cache(maxsize=64)
+def _z_signs(num_qubits: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     idx = np.arange(2**num_qubits)[:, None]
     signs = 1.0 - 2.0 * ((idx >> np.arange(num_qubits)[None, :]) & 1)
-    return torch.as_tensor(signs, dtype=like.dtype, device=like.device)
+    return torch.as_tensor(signs, dtype=dtype, device=device)
 
 
 def z_expectations(probs: torch.Tensor, num_qubits: int) -> torch.Tensor:

@@ -10,7 +10,6 @@ one ``2**n x 2**n`` unitary before it touches the states.
 
 from __future__ import annotations
 
-import string
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -21,9 +20,9 @@ from qdcnn._optional import require
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates as np_gates
 from qdcnn.quantum.circuits import CircuitTemplate
+from qdcnn.quantum.torchsim import pauli
 from qdcnn.quantum.torchsim.gates import complex_dtype, gate_matrices
 from qdcnn.quantum.torchsim.measure import (
-    density_probabilities,
     readout_matrix,
     sampled,
     state_probabilities,
@@ -145,7 +144,8 @@ class TorchCircuit:
         if not self.program.noisy:
             psi = self.statevector(inputs, weights)
             return psi[:, :, None] * psi.conj()[:, None, :]
-        return self._evolve_density(inputs, weights)
+        c = self._evolve_density(inputs, weights)
+        return pauli.density_matrix(c, self.num_qubits, complex_dtype(c.dtype))
 
     def probabilities(
         self,
@@ -161,7 +161,7 @@ class TorchCircuit:
         estimated from that many measurements (seeded by ``rng``; not differentiable).
         """
         if self.program.noisy:
-            probs = density_probabilities(self._evolve_density(inputs, weights))
+            probs = pauli.probabilities(self._evolve_density(inputs, weights), self.num_qubits)
         else:
             probs = state_probabilities(self._evolve_state(inputs, weights))
         if self.program.readout is not None:
@@ -205,7 +205,13 @@ class TorchCircuit:
                 m = gate_matrices(group.name, None, ref)
                 out.append(m.unsqueeze(1).expand(1, len(group.gates), 2, 2))
                 continue
-            if group.per_sample:
+            slots = group.slots
+            if min(slots) >= t.num_inputs and weights is not None:  # weights alone
+                source = weights if weights.ndim == 2 else weights[None]
+                slots = tuple(k - t.num_inputs for k in slots)
+            elif max(slots) < t.num_inputs and inputs is not None:  # inputs alone
+                source = inputs if inputs.ndim == 2 else inputs[None]
+            elif group.per_sample:
                 if full is None:
                     full = _concat(t, inputs, weights, batch, ref)
                 source = full
@@ -213,9 +219,10 @@ class TorchCircuit:
                 if shared is None:
                     shared = _concat(t, _shared(inputs), _shared(weights), 1, ref)
                 source = shared
-            idx = self._index(("slots", group.slots), group.slots, ref.device)
+            if slots != tuple(range(source.shape[1])):
+                source = source.index_select(1, self._index(("slots", slots), slots, ref.device))
             count = np_gates.ANGLE_COUNT[group.name]
-            angles = source.index_select(1, idx).view(source.shape[0], len(group.gates), count)
+            angles = source.view(source.shape[0], len(group.gates), count)
             out.append(gate_matrices(group.name, angles, ref))
         return out
 
@@ -279,11 +286,11 @@ class TorchCircuit:
                     continue
                 if pending is not None:
                     psi, pending = _apply_unitary(psi, pending), None
-                for j, q in enumerate(bp.qubits):
-                    psi = _apply_1q(psi, fused[:, j], q, n)
+                for q, m in zip(bp.qubits, fused.unbind(1), strict=True):
+                    psi = _apply_local(psi, m, q, n, 2)
             elif isinstance(step, Monomial):
                 if product is not None:
-                    psi, product = _product_state(product, n, batch, ref), None
+                    psi, product = _product_state(product, n, batch, ref, 2), None
                 assert psi is not None
                 perm = self._index(("perm", i), step.perm, ref.device)
                 sign = (
@@ -302,112 +309,125 @@ class TorchCircuit:
                     psi = psi.index_select(1, perm)
                     psi = psi if sign is None else psi * sign
         if product is not None:
-            psi = _product_state(product, n, batch, ref)
+            psi = _product_state(product, n, batch, ref, 2)
         assert psi is not None
         if pending is not None:
             psi = _apply_unitary(psi, pending)
         return psi.expand(batch, -1) if psi.shape[0] != batch else psi
 
-    # ---- density matrix ------------------------------------------------------------
+    # ---- density matrix (Pauli basis, real) -------------------------------------------
 
-    def _superops(self, ref: torch.Tensor) -> list[torch.Tensor]:
-        """Each distinct Kraus set as a superoperator ``(4**m, 4**m)``."""
+    def _noise_ptms(self, ref: torch.Tensor) -> list[torch.Tensor]:
+        """Each distinct Kraus set as a real Pauli transfer matrix ``(4**m, 4**m)``."""
 
         def make() -> list[torch.Tensor]:
-            out = []
-            cdt = complex_dtype(ref.dtype)
-            for k in self.program.kraus:
-                kt = torch.as_tensor(k, dtype=cdt, device=ref.device)
-                d = k.shape[-1]
-                out.append(torch.einsum("aik,ajl->ijkl", kt, kt.conj()).reshape(d * d, d * d))
-            return out
+            return [
+                torch.as_tensor(pauli.kraus_ptm(k), dtype=ref.dtype, device=ref.device)
+                for k in self.program.kraus
+            ]
 
-        out: list[torch.Tensor] = self._const("superops", make, ref)
+        out: list[torch.Tensor] = self._const("noise-ptm", make, ref)
         return out
 
     def _round_noise(self, rp: _RoundPlan, ref: torch.Tensor) -> torch.Tensor | None:
-        """``(k, 4, 4)`` noise superoperators after the round's gates (``None``: no noise)."""
+        """``(k, 4, 4)`` noise transfer matrices after the round's gates (``None``: no noise)."""
         fused = self.program.fused_noise
         if not any(g in fused for g in rp.gates):
             return None
 
         def make() -> torch.Tensor:
-            sup = self._superops(ref)
-            eye = torch.eye(4, dtype=complex_dtype(ref.dtype), device=ref.device)
+            ptm = self._noise_ptms(ref)
+            eye = torch.eye(4, dtype=ref.dtype, device=ref.device)
             mats = []
             for g in rp.gates:
                 m = eye
                 for k in fused.get(g, ()):
-                    m = sup[k] @ m
+                    m = ptm[k] @ m
                 mats.append(m)
             return torch.stack(mats)
 
         return self._const(("round-noise", rp.gates), make, ref)
 
-    def _fuse_super(
+    def _fuse_ptm(
         self, bp: _BlockPlan, mats: list[torch.Tensor], ref: torch.Tensor, columns: bool
     ) -> torch.Tensor:
-        """Per-qubit superoperators ``(B', m, 4, 4)`` of gate-then-noise, or first columns."""
+        """Per-qubit transfer matrices ``(B', m, 4, 4)`` of gate-then-noise (or Bloch columns)."""
 
-        def round_super(rp: _RoundPlan) -> torch.Tensor:
+        def round_ptm(rp: _RoundPlan) -> torch.Tensor:
             u = self._round(rp, mats)
-            u = u if u.is_complex() else u.to(complex_dtype(u.dtype))
-            s = _super(u)
+            r = pauli.unitary_ptm(u if u.is_complex() else u.to(complex_dtype(u.dtype)))
             noise = self._round_noise(rp, ref)
-            return s if noise is None else noise @ s
+            return r if noise is None else noise @ r
 
-        first = round_super(bp.rounds[0])
-        acc = first[..., :1] if columns else first
+        first = round_ptm(bp.rounds[0])
+        zero = _zero_bloch(ref.dtype, ref.device)
+        acc = first @ zero if columns else first
         for rp in bp.rounds[1:]:
-            acc = _apply_round(acc, round_super(rp), rp.positions, self._index)
+            acc = _apply_round(acc, round_ptm(rp), rp.positions, self._index)
         return acc
+
+    def _monomial_map(self, i: int, step: Monomial, device: torch.device, ref: torch.Tensor) -> Any:
+        key = ("pauli-mono", i)
+        if key not in self._consts:
+            n = self.num_qubits
+            mapping = None
+            for g in step.gates:
+                gate = self.template.gates[g]
+                u = (np_gates.CX if gate.name == "cx" else np_gates.CZ).astype(np.complex128)
+                m = pauli.clifford_map(u, gate.qubits, n)
+                mapping = m if mapping is None else pauli.then(mapping, m)
+            self._consts[key] = mapping
+        src, sign = self._consts[key]
+        src_t = self._index(("pauli-src", i), src, device)
+        sign_t = self._const(
+            ("pauli-sign", i),
+            lambda: torch.as_tensor(sign[:, None], dtype=ref.dtype, device=device),
+            ref,
+        )
+        return src_t, sign_t
 
     def _evolve_density(
         self, inputs: torch.Tensor | None, weights: torch.Tensor | None
     ) -> torch.Tensor:
+        """Final states as real Pauli coefficients ``(4**n, B)`` (see :mod:`.pauli`)."""
         inputs, weights, batch, ref = _check_params(self.template, inputs, weights)
         plan = self._plan(_batched(inputs), _batched(weights))
         mats = self._matrices(plan, inputs, weights, batch, ref)
         n = self.num_qubits
-        cdt = complex_dtype(ref.dtype)
-        product: dict[int, torch.Tensor] | None = {}  # qubit -> vec(rho_q) (B', 4)
-        rho: torch.Tensor | None = None
+        product: dict[int, torch.Tensor] | None = {}  # qubit -> Bloch vector (B', 4)
+        c: torch.Tensor | None = None
         for i, step in enumerate(self.program.steps):
             if isinstance(step, Block):
                 bp = plan.blocks[i]
+                fused = self._fuse_ptm(bp, mats, ref, columns=product is not None and not product)
                 if product is not None:
-                    fused = self._fuse_super(bp, mats, ref, columns=not product)
-                    _product_update(product, bp.qubits, fused, 4, ref)
+                    _product_update(
+                        product, bp.qubits, fused, 4, ref, _zero_bloch(ref.dtype, ref.device)
+                    )
                     continue
-                assert rho is not None
-                fused = self._fuse_super(bp, mats, ref, columns=False)
-                for j, q in enumerate(bp.qubits):
-                    rho = _apply_superop(rho, fused[:, j], (q,), n)
+                assert c is not None
+                for q, r in zip(bp.qubits, fused.unbind(1), strict=True):
+                    c = pauli.apply_local(c, r[0] if r.shape[0] == 1 else r, q, n)
                 continue
             if product is not None:
-                rho, product = _product_density(product, n, cdt, ref.device), None
-            assert rho is not None
+                c, product = self._bloch_product(product, ref), None
+            assert c is not None
             if isinstance(step, Monomial):
-                d = 2**n
-                idx = self._index(
-                    ("perm2", i), (step.perm[:, None] * d + step.perm[None, :]).ravel(), ref.device
-                )
-                rho = rho.reshape(rho.shape[0], d * d).index_select(1, idx).view(-1, d, d)
-                if step.sign is not None:
-                    outer = np.outer(step.sign, step.sign)
-                    rho = rho * self._const(
-                        ("sign2", i),
-                        lambda o=outer: torch.as_tensor(o, dtype=ref.dtype, device=ref.device),
-                        ref,
-                    )
+                src, sign = self._monomial_map(i, step, ref.device, ref)
+                c = c.index_select(0, src) * sign
             elif isinstance(step, Channels):
-                sup = self._superops(ref)
+                ptm = self._noise_ptms(ref)
                 for qubits, k in step.channels:
-                    rho = _apply_superop(rho, sup[k][None], qubits, n)
+                    c = pauli.apply_strings(c, ptm[k], qubits, n)
         if product is not None:
-            rho = _product_density(product, n, cdt, ref.device)
-        assert rho is not None
-        return rho.expand(batch, -1, -1) if rho.shape[0] != batch else rho
+            c = self._bloch_product(product, ref)
+        assert c is not None
+        return c.expand(-1, batch) if c.shape[1] != batch else c
+
+    def _bloch_product(self, product: dict[int, torch.Tensor], ref: torch.Tensor) -> torch.Tensor:
+        zero = _zero_bloch(ref.dtype, ref.device)[:, 0][None]
+        vs = _common([product.get(q, zero) for q in range(self.num_qubits - 1, -1, -1)])
+        return pauli.product(vs)
 
 
 # ---- plans ------------------------------------------------------------------------------
@@ -508,6 +528,7 @@ def _product_update(
     fused: torch.Tensor,
     size: int,
     ref: torch.Tensor,
+    start: torch.Tensor | None = None,
 ) -> None:
     """Apply a block to unentangled per-qubit vectors (states, or vec(rho) for ``size`` 4).
 
@@ -515,12 +536,25 @@ def _product_update(
     per-qubit product ``(B', m, size, 1)``; later ones hold the full ``(B', m, size, size)``.
     """
     if not product:
-        product.update({q: fused[:, j, :, 0] for j, q in enumerate(qubits)})
+        product.update(zip(qubits, fused[..., 0].unbind(1), strict=True))
         return
-    zero = ref.new_zeros(1, size)
-    zero[0, 0] = 1.0
-    for j, q in enumerate(qubits):
-        product[q] = _mv(fused[:, j], product.get(q, zero))
+    zero = _basis0(size, ref.dtype, ref.device) if start is None else start[:, 0][None]
+    for q, m in zip(qubits, fused.unbind(1), strict=True):
+        product[q] = _mv(m, product.get(q, zero))
+
+
+@lru_cache(maxsize=16)
+def _zero_bloch(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """The Bloch column ``(4, 1)`` of ``|0><0|``."""
+    return torch.tensor(pauli.ZERO_STATE, dtype=dtype, device=device)[:, None]
+
+
+@lru_cache(maxsize=64)
+def _basis0(size: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """``(1, size)`` with a one in the first place: ``|0>``, or ``vec(|0><0|)``."""
+    out = torch.zeros(1, size, dtype=dtype, device=device)
+    out[0, 0] = 1.0
+    return out
 
 
 def _apply_round(
@@ -535,11 +569,14 @@ def _apply_round(
 
 
 def _product_state(
-    qubit_states: dict[int, torch.Tensor], n: int, batch: int, ref: torch.Tensor
+    qubit_states: dict[int, torch.Tensor], n: int, batch: int, ref: torch.Tensor, size: int
 ) -> torch.Tensor:
-    """``v_{n-1} (x) ... (x) v_0`` (qubit 0 = LSB); qubits without gates are ``|0>``."""
-    zero = ref.new_zeros(1, 2)
-    zero[0, 0] = 1.0
+    """``v_{n-1} (x) ... (x) v_0`` (qubit 0 = LSB) of per-qubit vectors of ``size`` entries.
+
+    States (``size`` 2) give the state vector; ``vec(rho_q)`` (``size`` 4) give the
+    interleaved density vector. Qubits without gates are in ``|0>``.
+    """
+    zero = _basis0(size, ref.dtype, ref.device)
     vs = _common([qubit_states.get(q, zero) for q in range(n)])
     out = vs[n - 1]
     for q in range(n - 2, -1, -1):
@@ -547,24 +584,9 @@ def _product_state(
     return out
 
 
-def _product_density(
-    qubit_vecs: dict[int, torch.Tensor], n: int, cdt: torch.dtype, device: torch.device
-) -> torch.Tensor:
-    """``rho_{n-1} (x) ... (x) rho_0`` from per-qubit ``vec(rho_q)`` (row-major 2 x 2)."""
-    zero = torch.zeros(1, 4, dtype=cdt, device=device)
-    zero[0, 0] = 1.0
-    rs = _common([qubit_vecs.get(q, zero) for q in range(n)])
-    out = rs[n - 1].reshape(-1, 2, 2)
-    for q in range(n - 2, -1, -1):
-        r = rs[q].reshape(-1, 2, 2)
-        a = out.shape[-1]
-        out = (out[:, :, None, :, None] * r[:, None, :, None, :]).reshape(-1, 2 * a, 2 * a)
-    return out
-
-
 def _kron_unitary(per_qubit: torch.Tensor, qubits: tuple[int, ...], n: int) -> torch.Tensor:
     """``(2**n, 2**n)`` from one ``2 x 2`` per block qubit (identity elsewhere)."""
-    mats = {q: per_qubit[j] for j, q in enumerate(qubits)}
+    mats = dict(zip(qubits, per_qubit.unbind(0), strict=True))
     eye = torch.eye(2, dtype=per_qubit.dtype, device=per_qubit.device)
     out = mats.get(n - 1, eye)
     for q in range(n - 2, -1, -1):
@@ -577,58 +599,13 @@ def _apply_unitary(psi: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
     return _matmul(psi, u.T)
 
 
-def _apply_1q(psi: torch.Tensor, m: torch.Tensor, q: int, n: int) -> torch.Tensor:
-    """Apply ``(B', 2, 2)`` matrices to qubit ``q`` of states ``(B', 2**n)``."""
-    rows = max(psi.shape[0], m.shape[0])
-    view = psi.reshape(psi.shape[0], 2 ** (n - 1 - q), 2, 2**q)
-    out = _matmul(m[:, None], view)
-    return out.reshape(rows, 2**n)
+def _apply_local(state: torch.Tensor, m: torch.Tensor, q: int, n: int, dim: int) -> torch.Tensor:
+    """Apply ``(B', dim, dim)`` matrices to the ``dim``-level axis ``q`` of ``(B', dim**n)``.
 
-
-def _super(u: torch.Tensor) -> torch.Tensor:
-    """``U (x) conj(U)``: the superoperator of ``rho -> U rho U^dagger``, shape ``(..., 4, 4)``."""
-    s = u[..., :, None, :, None] * u.conj()[..., None, :, None, :]
-    return s.reshape(*u.shape[:-2], 4, 4)
-
-
-@lru_cache(maxsize=256)
-def _superop_subscripts(n: int, qubits: tuple[int, ...]) -> str:
-    """einsum spec applying an ``m``-qubit superoperator to ``rho`` viewed as ``2n`` axes.
-
-    The superoperator is viewed as ``(B', [2]*m ket-out, [2]*m bra-out, [2]*m ket-in,
-    [2]*m bra-in)``, each group most significant bit first (``qubits[-1]`` first).
+    ``dim`` 2: a one-qubit gate on a state vector; ``dim`` 4: a one-qubit superoperator
+    on an interleaved density vector.
     """
-    letters = iter(string.ascii_letters)
-    batch = next(letters)
-    ket = {q: next(letters) for q in range(n)}
-    bra = {q: next(letters) for q in range(n)}
-    ket_out = {q: next(letters) for q in qubits}
-    bra_out = {q: next(letters) for q in qubits}
-    msb_first = tuple(reversed(qubits))
-    sup = (
-        "".join(ket_out[q] for q in msb_first)
-        + "".join(bra_out[q] for q in msb_first)
-        + "".join(ket[q] for q in msb_first)
-        + "".join(bra[q] for q in msb_first)
-    )
-    order = range(n - 1, -1, -1)
-    rho_in = "".join(ket[q] for q in order) + "".join(bra[q] for q in order)
-    rho_out = "".join(ket_out.get(q, ket[q]) for q in order) + "".join(
-        bra_out.get(q, bra[q]) for q in order
-    )
-    return f"{batch}{sup},{batch}{rho_in}->{batch}{rho_out}"
-
-
-def _apply_superop(
-    rho: torch.Tensor, sup: torch.Tensor, qubits: tuple[int, ...], n: int
-) -> torch.Tensor:
-    """Apply superoperators ``(B', 4**m, 4**m)`` on ``qubits`` to ``rho`` ``(B', d, d)``."""
-    m = len(qubits)
-    d = 2**n
-    spec = _superop_subscripts(n, qubits)
-    s = sup.reshape(sup.shape[0], *([2] * (4 * m)))
-    r = rho.reshape(rho.shape[0], *([2] * (2 * n)))
-    if r.is_complex() != s.is_complex():
-        r = r.to(s.dtype)
-    out = torch.einsum(spec, s, r)
-    return out.reshape(out.shape[0], d, d)
+    rows = max(state.shape[0], m.shape[0])
+    view = state.reshape(state.shape[0], dim ** (n - 1 - q), dim, dim**q)
+    out = _matmul(m[:, None], view)
+    return out.reshape(rows, dim**n)
