@@ -32,6 +32,15 @@ from qdcnn.quantum.torchsim import TorchCircuit  # noqa: E402
 from qdcnn.vision.shadows import detect_shadows_uu  # noqa: E402
 
 
+@pytest.fixture(autouse=True)
+def _one_torch_thread():  # type: ignore[no-untyped-def]
+    """Small tensors: a second intra-op thread only adds contention on a shared machine."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
 def _head(n: int, layers: int, reupload: bool = False, noise=None) -> QuantumHead:  # type: ignore[no-untyped-def]
     torch.manual_seed(n + 10 * layers)
     return QuantumHead(5, n, layers, reupload=reupload, noise=noise).double()

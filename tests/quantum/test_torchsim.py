@@ -24,6 +24,15 @@ from qdcnn.quantum.torchsim import MAX_QUBITS, TorchCircuit, gate_channels  # no
 from qdcnn.quantum.torchsim.gates import gate_matrices  # noqa: E402
 
 
+@pytest.fixture(autouse=True)
+def _one_torch_thread():  # type: ignore[no-untyped-def]
+    """Small tensors: a second intra-op thread only adds contention on a shared machine."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
 def _tensors(inputs, weights, dtype=torch.float64, device="cpu"):  # type: ignore[no-untyped-def]
     return (
         torch.as_tensor(inputs, dtype=dtype, device=device),
