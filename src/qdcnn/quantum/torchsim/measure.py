@@ -21,11 +21,6 @@ def state_probabilities(psi: torch.Tensor) -> torch.Tensor:
     return psi.square()
 
 
-def density_probabilities(rho: torch.Tensor) -> torch.Tensor:
-    """The real diagonal of density matrices ``(B, d, d)``."""
-    return torch.diagonal(rho, dim1=-2, dim2=-1).real
-
-
 def readout_matrix(confusions: list[NDArray[np.float64]], like: torch.Tensor) -> torch.Tensor:
     """``A_{n-1} (x) ... (x) A_0`` for per-qubit ``A_q[measured, prepared]`` (qubit 0 = LSB)."""
     full = np.ones((1, 1))

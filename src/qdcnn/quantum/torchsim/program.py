@@ -6,7 +6,7 @@ Plain Python and NumPy (no torch): the template's gates are grouped once into
   block is, per qubit, an ordered list of gates; *round* ``r`` holds the ``r``-th
   gate of every qubit that has one, so a block costs one batched product per round
   however many qubits it spans. With noise, a gate's channel on its own qubit is
-  fused into the same per-qubit operator (as a superoperator).
+  fused into the same per-qubit operator (a Pauli transfer matrix).
 * :class:`Monomial`: two-qubit gates (``cx``, ``cz``), which permute basis states and
   flip signs. Without noise, consecutive ones fuse into one permutation and sign.
 * :class:`Channels`: noise that cannot be fused into a block (every channel after a

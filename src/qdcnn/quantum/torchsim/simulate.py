@@ -5,7 +5,12 @@ its rounds or qubits); every sample of the batch goes through each torch operati
 together. Parameters that are 1-D (shared by the batch, e.g. trained weights) keep
 the gates built from them batch-free: their matrices are built once and, in the
 statevector simulation, a run of such gates on a full register is multiplied into
-one ``2**n x 2**n`` unitary before it touches the states.
+one ``2**n x 2**n`` unitary before it touches the states. Until the first two-qubit
+gate the register is a product state, kept as one small vector per qubit.
+
+Density matrices are simulated in the Pauli basis (:mod:`.pauli`): real
+coefficients, a real ``4 x 4`` transfer matrix per qubit for each one-qubit gate
+together with its noise, signed permutations for ``cx`` and ``cz``.
 """
 
 from __future__ import annotations
@@ -287,10 +292,10 @@ class TorchCircuit:
                 if pending is not None:
                     psi, pending = _apply_unitary(psi, pending), None
                 for q, m in zip(bp.qubits, fused.unbind(1), strict=True):
-                    psi = _apply_local(psi, m, q, n, 2)
+                    psi = _apply_1q(psi, m, q, n)
             elif isinstance(step, Monomial):
                 if product is not None:
-                    psi, product = _product_state(product, n, batch, ref, 2), None
+                    psi, product = _product_state(product, n, ref), None
                 assert psi is not None
                 perm = self._index(("perm", i), step.perm, ref.device)
                 sign = (
@@ -309,7 +314,7 @@ class TorchCircuit:
                     psi = psi.index_select(1, perm)
                     psi = psi if sign is None else psi * sign
         if product is not None:
-            psi = _product_state(product, n, batch, ref, 2)
+            psi = _product_state(product, n, ref)
         assert psi is not None
         if pending is not None:
             psi = _apply_unitary(psi, pending)
@@ -569,14 +574,10 @@ def _apply_round(
 
 
 def _product_state(
-    qubit_states: dict[int, torch.Tensor], n: int, batch: int, ref: torch.Tensor, size: int
+    qubit_states: dict[int, torch.Tensor], n: int, ref: torch.Tensor
 ) -> torch.Tensor:
-    """``v_{n-1} (x) ... (x) v_0`` (qubit 0 = LSB) of per-qubit vectors of ``size`` entries.
-
-    States (``size`` 2) give the state vector; ``vec(rho_q)`` (``size`` 4) give the
-    interleaved density vector. Qubits without gates are in ``|0>``.
-    """
-    zero = _basis0(size, ref.dtype, ref.device)
+    """``v_{n-1} (x) ... (x) v_0`` (qubit 0 = LSB); qubits without gates are ``|0>``."""
+    zero = _basis0(2, ref.dtype, ref.device)
     vs = _common([qubit_states.get(q, zero) for q in range(n)])
     out = vs[n - 1]
     for q in range(n - 2, -1, -1):
@@ -599,13 +600,9 @@ def _apply_unitary(psi: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
     return _matmul(psi, u.T)
 
 
-def _apply_local(state: torch.Tensor, m: torch.Tensor, q: int, n: int, dim: int) -> torch.Tensor:
-    """Apply ``(B', dim, dim)`` matrices to the ``dim``-level axis ``q`` of ``(B', dim**n)``.
-
-    ``dim`` 2: a one-qubit gate on a state vector; ``dim`` 4: a one-qubit superoperator
-    on an interleaved density vector.
-    """
-    rows = max(state.shape[0], m.shape[0])
-    view = state.reshape(state.shape[0], dim ** (n - 1 - q), dim, dim**q)
+def _apply_1q(psi: torch.Tensor, m: torch.Tensor, q: int, n: int) -> torch.Tensor:
+    """Apply ``(B', 2, 2)`` matrices to qubit ``q`` of states ``(B', 2**n)``."""
+    rows = max(psi.shape[0], m.shape[0])
+    view = psi.reshape(psi.shape[0], 2 ** (n - 1 - q), 2, 2**q)
     out = _matmul(m[:, None], view)
-    return out.reshape(rows, dim**n)
+    return out.reshape(rows, 2**n)
