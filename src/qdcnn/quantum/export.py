@@ -59,8 +59,8 @@ def gate_listing(circuit: CircuitBatch, index: int = 0) -> str:
         "(qubit 0 = least significant bit)"
     ]
     width = len(str(len(circuit.gates)))
-    for k, (gate, angle) in enumerate(zip(circuit.gates, circuit.angles_of(index), strict=True)):
-        args = "" if angle is None else f"({angle:.10g})"
+    for k, (gate, params) in enumerate(zip(circuit.gates, circuit.params_of(index), strict=True)):
+        args = f"({', '.join(f'{a:.10g}' for a in params)})" if params else ""
         qubits = ", ".join(f"q[{q}]" for q in gate.qubits)
         lines.append(f"  {k + 1:>{width}}  {gate.name}{args} {qubits}")
     return "\n".join(lines)

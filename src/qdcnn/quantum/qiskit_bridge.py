@@ -17,9 +17,26 @@ from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import check_shots
 
-ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z")
+ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z", "u")
 #: the one-qubit gates a NoiseSpec channel follows in an Aer noise model (with the native sx)
 NOISY_ONE_QUBIT_GATES: tuple[str, ...] = (*ONE_QUBIT_GATES, "sx")
+#: two-qubit gates of the noise model (each followed by the channel on both qubits)
+TWO_QUBIT_GATES = ("cx", "cz")
+
+
+def append_gate(qc: Any, name: str, qubits: tuple[int, ...], params: tuple[float, ...]) -> None:
+    """Append one qdcnn gate to the Qiskit circuit ``qc``.
+
+    ``rot(phi, theta, omega)`` becomes Qiskit's ``u(theta, omega, phi)`` with the global
+    phase ``-(phi + omega) / 2`` added to ``qc``, so states agree exactly (OpenQASM 3
+    export drops the global phase, which no measurement can see).
+    """
+    if name == "rot":
+        phi, theta, omega = params
+        qc.u(theta, omega, phi, *qubits)
+        qc.global_phase -= (phi + omega) / 2
+    else:
+        getattr(qc, name)(*params, *qubits)
 
 
 def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
@@ -34,9 +51,8 @@ def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
     out = []
     for i in indices:
         qc = qiskit.QuantumCircuit(circuit.num_qubits, name=f"{circuit.name}_{i}")
-        for gate, angle in zip(circuit.gates, circuit.angles_of(i), strict=True):
-            method = getattr(qc, gate.name)
-            method(*((angle,) if angle is not None else ()), *gate.qubits)
+        for gate in circuit.gates:
+            append_gate(qc, gate.name, gate.qubits, gate.params(i))
         out.append(qc)
     return out if index is None else out[0]
 
@@ -44,10 +60,10 @@ def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
 def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = NOISY_ONE_QUBIT_GATES) -> Any:
     """A qiskit-aer ``NoiseModel`` equal to ``noise`` as qdcnn applies it.
 
-    The channel follows every one-qubit gate in ``gate_names`` and, tensored
-    with itself, every ``cx``; the readout error acts on every measured qubit.
-    For a :class:`~qdcnn.quantum.device.DeviceNoise` it is the device's model on its
-    physical qubits (:func:`device_noise_model`).
+    The channel follows every one-qubit gate in ``gate_names`` (``u`` is qdcnn's
+    ``rot``) and, tensored with itself, every ``cx`` and ``cz``; the readout error
+    acts on every measured qubit. For a :class:`~qdcnn.quantum.device.DeviceNoise` it is
+    the device's model on its physical qubits (:func:`device_noise_model`).
     """
     from qdcnn.quantum.device import DeviceNoise
 
@@ -55,12 +71,12 @@ def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = NOISY_ONE_QU
         return device_noise_model(noise)
     aer_noise = require("qiskit_aer", "Aer noise models").noise
     info = require("qiskit", "Aer noise models").quantum_info
-    model = aer_noise.NoiseModel(basis_gates=[*gate_names, "cx"])
+    model = aer_noise.NoiseModel(basis_gates=[*gate_names, *TWO_QUBIT_GATES])
     kraus = noise.kraus()
     if kraus is not None:
         err = aer_noise.QuantumError(info.Kraus(list(kraus)))
         model.add_all_qubit_quantum_error(err, list(gate_names))
-        model.add_all_qubit_quantum_error(err.tensor(err), ["cx"])
+        model.add_all_qubit_quantum_error(err.tensor(err), list(TWO_QUBIT_GATES))
     if noise.readout:
         model.add_all_qubit_readout_error(aer_noise.ReadoutError(noise.readout_matrix().T))
     return model

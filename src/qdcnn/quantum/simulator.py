@@ -25,6 +25,12 @@ def _cx_permutation(n: int, control: int, target: int) -> NDArray[np.intp]:
     return np.where((idx >> control) & 1, idx ^ (1 << target), idx)
 
 
+def cz_signs(n: int, a: int, b: int) -> NDArray[np.float64]:
+    """Diagonal of ``CZ(a, b)`` on ``n`` qubits: ``-1`` where both bits are set, else ``1``."""
+    idx = np.arange(2**n)
+    return np.where((idx >> a) & (idx >> b) & 1, -1.0, 1.0)
+
+
 def _apply_1q(state: NDArray[Any], m: NDArray[Any], q: int, n: int) -> NDArray[Any]:
     b = state.shape[0]
     view = state.reshape(b, 2 ** (n - 1 - q), 2, 2**q)
@@ -63,7 +69,7 @@ def fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
 
 
 def _evolve(circuit: CircuitBatch, fused: list[Gate] | None = None) -> NDArray[Any]:
-    """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX).
+    """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX, CZ).
 
     ``fused`` is ``fuse_rotations(circuit.gates)`` when the caller already has it.
     """
@@ -73,6 +79,8 @@ def _evolve(circuit: CircuitBatch, fused: list[Gate] | None = None) -> NDArray[A
     for g in fuse_rotations(circuit.gates) if fused is None else fused:
         if g.name == "cx":
             state = state[:, _cx_permutation(n, *g.qubits)]
+        elif g.name == "cz":
+            state = state * cz_signs(n, *g.qubits)
         else:
             state = _apply_1q(state, g.matrix(), g.qubits[0], n)
     return state
@@ -102,6 +110,8 @@ def _gate_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
     if g.name == "cx":
         perm = _cx_permutation(n, *g.qubits)
         return np.eye(2**n, dtype=np.complex128)[perm][None]
+    if g.name == "cz":
+        return np.diag(cz_signs(n, *g.qubits)).astype(np.complex128)[None]
     return embed(g.matrix(), g.qubits[0], n)
 
 

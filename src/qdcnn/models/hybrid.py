@@ -1,0 +1,206 @@
+"""Hybrid quantum-classical direction networks ("QDCNN proper"): a PilotNet trunk with
+quantum layers, and classical twins with the same trunk and a head of equal size.
+
+Every network is a plain ``nn.Module`` mapping the preprocessed frames PilotNet gets
+(:data:`qdcnn.models.preprocess.PILOTNET_INPUT`: ``(B, 3 K, 66, 200)`` YUV scaled to
+about ``[-1, 1]``, ``K`` stacked frames) to ``(B, 3)`` logits, so any training loop
+that trains PilotNet trains them.
+
+* ``qdcnn-head``: PilotNet's convolutions and dense layers down to its 10-unit
+  embedding, then :class:`~qdcnn.models.quantum_layers.QuantumHead`.
+* ``qdcnn-uuconv``: a :class:`~qdcnn.models.quantum_layers.UUConv2d` front end on the
+  intensity (Y) of every frame (``v = (Y + 1) / 2``, stride 1, same size), then the
+  trunk, then the quantum head.
+* ``qdcnn-quanv``: a :class:`~qdcnn.models.quantum_layers.Quanvolution2d` front end on
+  every input channel in place of PilotNet's first strided convolution (both halve the
+  frame), then the rest of the trunk and the quantum head.
+
+``head="classical"`` swaps the quantum head for
+:class:`~qdcnn.models.quantum_layers.RingMLPHead`, which has exactly as many
+trainable parameters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from qdcnn._optional import require
+from qdcnn._validation import check_choice, check_int
+from qdcnn.errors import ParameterError
+from qdcnn.models.pilotnet import PilotNet
+from qdcnn.models.quantum_layers import QuantumHead, Quanvolution2d, RingMLPHead, UUConv2d
+from qdcnn.quantum.noise import NoiseSpec
+
+require("torch", "the hybrid quantum networks")
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+HEADS = ("quantum", "classical")
+#: PilotNet's input size (rows, columns)
+INPUT_SIZE = (66, 200)
+
+
+def pilotnet_trunk(
+    in_channels: int = 3,
+    input_size: tuple[int, int] = INPUT_SIZE,
+    *,
+    drop_first_conv: bool = False,
+    dropout: float = 0.3,
+) -> tuple[nn.Sequential, int]:
+    """PilotNet without its class layer: ``(B, C, H, W)`` -> ``(B, 10)`` embeddings.
+
+    The layers are those of :class:`qdcnn.models.pilotnet.PilotNet`; the first
+    convolution is rebuilt for ``in_channels`` (or dropped), and the first dense layer
+    for the flattened size of ``input_size``. Returns the trunk and its embedding size.
+    """
+    net = PilotNet(dropout=dropout)
+    convs = list(net.features)[2:] if drop_first_conv else list(net.features)
+    first = convs[0]
+    assert isinstance(first, nn.Conv2d)
+    if first.in_channels != in_channels:  # PilotNet's kernels and strides are square
+        k, stride = first.kernel_size[0], first.stride[0]
+        convs[0] = nn.Conv2d(in_channels, first.out_channels, k, stride)
+    features = nn.Sequential(*convs)
+    try:
+        with torch.no_grad():
+            flat = features(torch.zeros(1, in_channels, *input_size)).numel()
+    except RuntimeError:
+        flat = 0
+    if flat == 0:
+        raise ParameterError("input_size", input_size, "large enough for PilotNet's convolutions")
+    dense = list(net.classifier)[:-1]  # Flatten, Dropout, 100, ELU, 50, ELU, 10, ELU
+    first_dense = dense[2]
+    assert isinstance(first_dense, nn.Linear)
+    if first_dense.in_features != flat:
+        dense[2] = nn.Linear(flat, first_dense.out_features)
+    last = dense[-2]
+    assert isinstance(last, nn.Linear)
+    return nn.Sequential(features, *dense), last.out_features
+
+
+def make_head(
+    head: str,
+    in_features: int,
+    *,
+    n_qubits: int = 4,
+    n_layers: int = 2,
+    reupload: bool = False,
+    shots: int | None = None,
+    noise: NoiseSpec | None = None,
+    num_classes: int = 3,
+) -> nn.Module:
+    """The quantum head, or its classical twin (which takes no shots and no noise)."""
+    head = check_choice("head", head, HEADS)
+    if head == "quantum":
+        return QuantumHead(
+            in_features, n_qubits, n_layers, reupload, shots, noise, num_classes=num_classes
+        )
+    for name, value in (("shots", shots), ("noise", noise), ("reupload", reupload or None)):
+        if value is not None:
+            raise ParameterError(name, value, "None with the classical head (quantum only)")
+    return RingMLPHead(in_features, n_qubits, n_layers, num_classes)
+
+
+class HybridNet(nn.Module):
+    """``front`` (optional) -> ``trunk`` -> ``head``: ``(B, C, H, W)`` -> ``(B, 3)`` logits."""
+
+    def __init__(self, front: nn.Module | None, trunk: nn.Module, head: nn.Module) -> None:
+        super().__init__()
+        self.front = front
+        self.trunk = trunk
+        self.head = head
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.front is not None:
+            x = self.front(x)
+        out: torch.Tensor = self.head(self.trunk(x))
+        return out
+
+
+class IntensityUUConv(nn.Module):
+    """:class:`UUConv2d` on the Y plane of each of ``K`` stacked YUV frames, same size.
+
+    ``(B, 3 K, H, W)`` scaled YUV -> ``(B, K n_centroids, H, W)`` fidelities; the frames
+    share the centroids. ``Y`` in ``[-1, 1]`` maps to ``v = (Y + 1) / 2 = Y_8bit / 255``.
+    """
+
+    def __init__(self, in_channels: int, n_centroids: int = 4, kernel_size: int = 3) -> None:
+        super().__init__()
+        if check_int("in_channels", in_channels, 3) % 3:
+            raise ParameterError("in_channels", in_channels, "3 K channels (K YUV frames)")
+        self.frames = in_channels // 3
+        k = check_int("kernel_size", kernel_size, 1)
+        if k % 2 == 0:
+            raise ParameterError("kernel_size", k, "an odd size (the output keeps the frame size)")
+        self.uu = UUConv2d(1, n_centroids, k, stride=1, padding=k // 2)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, _, h, w = x.shape
+        y = ((x[:, 0::3] + 1.0) * 0.5).clamp(0.0, 1.0).reshape(b * self.frames, 1, h, w)
+        out: torch.Tensor = self.uu(y)
+        return out.reshape(b, self.frames * self.uu.n_centroids, *out.shape[-2:])
+
+
+def qdcnn_head(
+    in_channels: int = 3,
+    head: str = "quantum",
+    *,
+    input_size: tuple[int, int] = INPUT_SIZE,
+    dropout: float = 0.3,
+    **head_options: Any,
+) -> HybridNet:
+    """``qdcnn-head``: PilotNet trunk -> quantum head (or its twin)."""
+    trunk, features = pilotnet_trunk(in_channels, input_size, dropout=dropout)
+    return HybridNet(None, trunk, make_head(head, features, **head_options))
+
+
+def qdcnn_uuconv(
+    in_channels: int = 3,
+    head: str = "quantum",
+    *,
+    n_centroids: int = 4,
+    kernel_size: int = 3,
+    input_size: tuple[int, int] = INPUT_SIZE,
+    dropout: float = 0.3,
+    **head_options: Any,
+) -> HybridNet:
+    """``qdcnn-uuconv``: UU-dagger convolution on Y -> PilotNet trunk -> head."""
+    front = IntensityUUConv(in_channels, n_centroids, kernel_size)
+    trunk, features = pilotnet_trunk(front.frames * n_centroids, input_size, dropout=dropout)
+    return HybridNet(front, trunk, make_head(head, features, **head_options))
+
+
+def qdcnn_quanv(
+    in_channels: int = 3,
+    head: str = "quantum",
+    *,
+    quanv_layers: int = 1,
+    quanv_seed: int = 42,
+    input_size: tuple[int, int] = INPUT_SIZE,
+    dropout: float = 0.3,
+    **head_options: Any,
+) -> HybridNet:
+    """``qdcnn-quanv``: quanvolution (in place of the first strided conv) -> trunk -> head."""
+    front = Quanvolution2d(in_channels, quanv_layers, seed=quanv_seed)
+    half = (input_size[0] // 2, input_size[1] // 2)
+    trunk, features = pilotnet_trunk(4 * in_channels, half, drop_first_conv=True, dropout=dropout)
+    return HybridNet(front, trunk, make_head(head, features, **head_options))
+
+
+HYBRIDS: dict[str, Callable[..., HybridNet]] = {
+    "qdcnn-head": qdcnn_head,
+    "qdcnn-uuconv": qdcnn_uuconv,
+    "qdcnn-quanv": qdcnn_quanv,
+}
+
+
+def build_hybrid(name: str, in_channels: int = 3, **kwargs: Any) -> HybridNet:
+    """Build the hybrid network ``name`` (a key of :data:`HYBRIDS`)."""
+    name = check_choice("architecture", name, tuple(HYBRIDS))
+    return HYBRIDS[name](in_channels, **kwargs)
+
+
+def trainable_parameters(module: nn.Module) -> int:
+    """Number of trainable parameters."""
+    return sum(p.numel() for p in module.parameters() if p.requires_grad)

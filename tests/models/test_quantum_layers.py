@@ -1,0 +1,257 @@
+"""Quantum layers against PennyLane, the NumPy simulator, Aer and the shadow detector."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from qdcnn.config import ShadowConfig  # noqa: E402
+from qdcnn.data.synthetic import generate_scene  # noqa: E402
+from qdcnn.errors import ParameterError  # noqa: E402
+from qdcnn.models.quantum_layers import (  # noqa: E402
+    QuantumHead,
+    Quanvolution2d,
+    RingMLPHead,
+    UUConv2d,
+    uu_block_scores,
+)
+from qdcnn.quantum.noise import NoiseSpec  # noqa: E402
+from qdcnn.quantum.templates import (  # noqa: E402
+    entangler_ranges,
+    head_circuit,
+    head_readout,
+    uu_fidelity_template,
+)
+from qdcnn.quantum.torchsim import TorchCircuit  # noqa: E402
+from qdcnn.vision.shadows import detect_shadows_uu  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():  # type: ignore[no-untyped-def]
+    """Small tensors: a second intra-op thread only adds contention on a shared machine."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+def _head(n: int, layers: int, reupload: bool = False, noise=None) -> QuantumHead:  # type: ignore[no-untyped-def]
+    torch.manual_seed(n + 10 * layers)
+    return QuantumHead(5, n, layers, reupload=reupload, noise=noise).double()
+
+
+def _pennylane_head(n: int, layers: int, reupload: bool):  # type: ignore[no-untyped-def]
+    qml = pytest.importorskip("pennylane")
+    dev = qml.device("default.qubit", wires=n)
+
+    @qml.qnode(dev, interface="torch", diff_method="backprop")
+    def circuit(x, w):  # type: ignore[no-untyped-def]
+        if not reupload:
+            qml.AngleEmbedding(x, wires=range(n), rotation="Y")
+            qml.StronglyEntanglingLayers(w, wires=range(n))
+        else:
+            for layer, r in enumerate(entangler_ranges(n, layers)):
+                qml.AngleEmbedding(x, wires=range(n), rotation="Y")
+                qml.StronglyEntanglingLayers(w[layer : layer + 1], wires=range(n), ranges=[r])
+        return [qml.expval(qml.PauliZ(i)) for i in range(n)]
+
+    return circuit
+
+
+@pytest.mark.parametrize(
+    ("n", "layers", "reupload"),
+    [(1, 2, False), (2, 1, False), (3, 3, False), (4, 2, False), (4, 2, True), (3, 3, True)],
+)
+def test_head_circuit_equals_pennylane_values_and_gradients(
+    n: int, layers: int, reupload: bool
+) -> None:
+    head = _head(n, layers, reupload)
+    emb = torch.randn(6, 5, dtype=torch.float64)
+    x = head.angles(emb).detach().requires_grad_(True)
+    w = head.weights.detach().clone().requires_grad_(True)
+    ours = head.circuit.expectations(x, w.reshape(-1))
+    pl = torch.stack(list(_pennylane_head(n, layers, reupload)(x, w)), dim=-1)
+    np.testing.assert_allclose(ours.detach().numpy(), pl.detach().numpy(), atol=1e-12)
+    coef = torch.randn(6, n, dtype=torch.float64)
+    g_ours = torch.autograd.grad((ours * coef).sum(), (x, w))
+    g_pl = torch.autograd.grad((pl * coef).sum(), (x, w))
+    for a, b in zip(g_ours, g_pl, strict=True):
+        np.testing.assert_allclose(a.numpy(), b.numpy(), atol=1e-10)
+
+
+def test_head_forward_is_projection_circuit_readout_and_trains() -> None:
+    head = _head(4, 2)
+    emb = torch.randn(8, 5, dtype=torch.float64)
+    angles = math.pi * torch.tanh(head.projection(emb))
+    expected = head.readout(head.circuit.expectations(angles, head.weights.reshape(-1)))
+    np.testing.assert_allclose(head(emb).detach().numpy(), expected.detach().numpy())
+    assert float(angles.detach().abs().max()) < math.pi
+    head(emb).sum().backward()
+    for p in (head.projection.weight, head.weights, head.readout.weight):
+        assert p.grad is not None and float(p.grad.abs().sum()) > 0
+
+
+def test_head_under_noise_equals_numpy_density_matrix() -> None:
+    noise = NoiseSpec("depolarizing", 0.1, readout=0.02)
+    head = _head(3, 2, reupload=True, noise=noise)
+    emb = torch.randn(4, 5, dtype=torch.float64)
+    x = head.angles(emb).detach()
+    ref = head_readout(x.numpy(), head.weights.detach().numpy(), reupload=True, noise=noise)[
+        "expectations"
+    ]
+    np.testing.assert_allclose(head.expectations(emb).detach().numpy(), ref, atol=1e-12)
+
+
+def test_head_shots_only_in_eval_mode() -> None:
+    torch.manual_seed(0)
+    head = QuantumHead(5, 2, 1, shots=512, shot_seed=4).double()
+    emb = torch.randn(300, 5, dtype=torch.float64)
+    exact = head.circuit.expectations(head.angles(emb), head.weights.reshape(-1)).detach()
+    np.testing.assert_allclose(head.expectations(emb).detach().numpy(), exact.numpy())
+    head.eval()
+    est = head.expectations(emb).detach()
+    # <Z> from 512 shots: standard deviation sqrt(1 - <Z>^2) / sqrt(512)
+    sigma = torch.sqrt(1 - exact.square()) / math.sqrt(512)
+    assert not torch.equal(est, exact)
+    assert bool(((est - exact).abs() <= 4.5 * sigma + 1e-12).all())
+
+
+def test_exported_head_circuit_on_aer_equals_qdcnn(tmp_path: Path) -> None:
+    pytest.importorskip("qiskit_qasm3_import")
+    aer = pytest.importorskip("qiskit_aer")
+    from qdcnn.quantum.export import draw_text, from_qasm3, write_qasm3
+
+    head = _head(4, 2, reupload=True)
+    emb = torch.randn(3, 5, dtype=torch.float64)
+    circuits = head.circuits(emb)
+    readout = head_readout(
+        head.angles(emb).detach().numpy(), head.weights.detach().numpy(), reupload=True
+    )
+    torch_z = head.expectations(emb).detach().numpy()
+    np.testing.assert_allclose(readout["expectations"], torch_z, atol=1e-12)
+    assert "U(" in draw_text(circuits, 1) or "rot(" in draw_text(circuits, 1)
+    sim = aer.AerSimulator(method="statevector")
+    for i in range(3):
+        qc = from_qasm3(write_qasm3(circuits, tmp_path / f"head{i}.qasm", i).read_text())
+        qc = qc.remove_final_measurements(inplace=False)
+        qc.save_probabilities()
+        probs = np.asarray(sim.run(qc).result().data(0)["probabilities"])
+        np.testing.assert_allclose(probs, readout["probabilities"][i], atol=1e-9)
+        z = [(probs * (1 - 2 * ((np.arange(16) >> q) & 1))).sum() for q in range(4)]
+        np.testing.assert_allclose(z, torch_z[i], atol=1e-9)
+
+
+def test_head_circuit_weight_order_is_pennylane_shape() -> None:
+    w = np.arange(24, dtype=float).reshape(2, 4, 3) / 10
+    flat = head_circuit(np.zeros(4), w.ravel())
+    shaped = head_circuit(np.zeros(4), w)
+    assert flat.params_of(0) == shaped.params_of(0)
+    rots = [p for g, p in zip(flat.gates, flat.params_of(0), strict=True) if g.name == "rot"]
+    assert rots[5] == tuple(w[1, 1])  # layer 1, qubit 1
+    with pytest.raises(ParameterError, match="weights='shape"):
+        head_circuit(np.zeros(4), np.zeros(10))
+
+
+def test_classical_twin_has_the_same_parameter_count() -> None:
+    for n, layers, features in [(1, 1, 3), (4, 2, 10), (5, 3, 64), (8, 4, 100)]:
+        q = QuantumHead(features, n, layers)
+        c = RingMLPHead(features, n, layers)
+        count = [sum(p.numel() for p in m.parameters() if p.requires_grad) for m in (q, c)]
+        assert count[0] == count[1]
+        assert c(torch.randn(2, features)).shape == (2, 3)
+
+
+def test_uu_conv_closed_form_equals_the_simulated_circuit() -> None:
+    torch.manual_seed(1)
+    for channels in (1, 2):
+        layer = UUConv2d(channels, 3, kernel_size=2).double()
+        with torch.no_grad():
+            layer.centroids.uniform_(0, math.pi)
+        means = torch.rand(50, channels, dtype=torch.float64)
+        scores = layer.scores(means)  # (50, 3)
+        sim = TorchCircuit(uu_fidelity_template(channels))
+        for k in range(3):
+            p0 = sim.probabilities(-math.pi * means, layer.centroids[k].detach())[:, 0]
+            np.testing.assert_allclose(scores[:, k].detach().numpy(), p0.numpy(), atol=1e-14)
+
+
+def test_uu_conv_reproduces_the_shadow_detector_block_scores() -> None:
+    scene = generate_scene("track2", seed=3)
+    for centroid in (70.0, 112.5):
+        det = detect_shadows_uu(scene.image, ShadowConfig(centroid=centroid, shots=None))
+        layer = UUConv2d.from_centroid(centroid).double()
+        ours = uu_block_scores(layer, scene.image)
+        assert ours.shape == (1, *det.block_scores.shape) == (1, 40, 79)
+        np.testing.assert_allclose(ours[0], det.block_scores, atol=1e-12)
+
+
+def test_uu_conv_forward_is_the_block_test_on_a_uniform_grid() -> None:
+    scene = generate_scene("track1", seed=5, width=64, height=64)
+    layer = UUConv2d.from_centroid(90.0, kernel_size=4).double()
+    grey = torch.as_tensor(cv2.cvtColor(scene.image, cv2.COLOR_RGB2GRAY) / 255.0)
+    conv = layer(grey[None, None])[0]
+    blocks = uu_block_scores(layer, scene.image, downsample=1, grid=16)
+    np.testing.assert_allclose(conv.detach().numpy(), blocks, atol=1e-12)
+    det = detect_shadows_uu(
+        scene.image, ShadowConfig(centroid=90.0, shots=None, downsample=1, grid=16)
+    )
+    np.testing.assert_allclose(conv[0].detach().numpy(), det.block_scores, atol=1e-12)
+
+
+def test_uu_conv_trains_its_centroids_and_checks_input() -> None:
+    layer = UUConv2d(2, 4, kernel_size=3, stride=1, padding=1)
+    x = torch.rand(2, 2, 12, 16)
+    out = layer(x)
+    assert out.shape == (2, 4, 12, 16)
+    out.sum().backward()
+    assert layer.centroids.grad is not None and layer.centroids.grad.abs().sum() > 0
+    with pytest.raises(ParameterError, match=r"x='shape \(2, 3, 12, 16\)' is invalid"):
+        layer(torch.rand(2, 3, 12, 16))
+    with pytest.raises(ParameterError, match="in_channels=3 is invalid"):
+        UUConv2d(3)
+
+
+def test_uu_conv_shots_in_eval_mode() -> None:
+    layer = UUConv2d.from_centroid(100.0, kernel_size=2, shots=1024, shot_seed=1).double()
+    x = torch.rand(1, 1, 40, 40, dtype=torch.float64)
+    exact = layer(x)
+    layer.eval()
+    est = layer(x)
+    sigma = torch.sqrt(exact * (1 - exact) / 1024)
+    assert not torch.equal(est, exact)
+    assert bool(((est - exact).abs() <= 4.5 * sigma + 1e-12).all())
+
+
+def test_quanvolution_equals_the_simulator_and_pennylane() -> None:
+    qml = pytest.importorskip("pennylane")
+    layer = Quanvolution2d(in_channels=2, seed=7, weight_seed=3).double()
+    image = torch.rand(2, 2, 6, 8, dtype=torch.float64)
+    out = layer(image)
+    assert out.shape == (2, 8, 3, 4)
+    patches = layer.patches(image)  # (2, 2, 3, 4, 4)
+    sim = layer.simulate(patches.reshape(-1, 4)).reshape(2, 2, 3, 4, 4)
+    np.testing.assert_allclose(
+        out.detach().numpy(), sim.permute(0, 1, 4, 2, 3).reshape(2, 8, 3, 4).numpy(), atol=1e-12
+    )
+    dev = qml.device("default.qubit", wires=4)
+    weights = layer.weights.numpy()
+
+    @qml.qnode(dev)
+    def circuit(phi):  # type: ignore[no-untyped-def]  # PennyLane's quanvolution demo
+        for j in range(4):
+            qml.RY(np.pi * phi[j], wires=j)
+        qml.RandomLayers(weights, wires=list(range(4)), seed=7)
+        return [qml.expval(qml.PauliZ(j)) for j in range(4)]
+
+    img = image[1, 0].numpy()
+    j, k = 2, 4  # the patch at row 2, column 4 -> output position (1, 2)
+    pl = circuit([img[j, k], img[j, k + 1], img[j + 1, k], img[j + 1, k + 1]])
+    np.testing.assert_allclose(out[1, 0:4, 1, 2].detach().numpy(), np.array(pl), atol=1e-12)
+    with pytest.raises(ParameterError, match="is invalid"):
+        layer(torch.rand(1, 3, 4, 4))
