@@ -665,3 +665,30 @@ def test_qubit_table_reports_the_calibration(manila: DeviceNoise) -> None:
         assert r["readout_p1_given_0"] == props.qubit_property(q)["prob_meas1_prep0"][0]
         assert r["readout_p0_given_1"] == props.qubit_property(q)["prob_meas0_prep1"][0]
     assert len(cal.qubit_table()) == 5
+
+
+def test_the_hybrid_head_circuit_runs_under_device_noise_as_its_expanded_form() -> None:
+    """Rot lowers to RZ RY RZ: the head's circuit equals the same circuit written that way."""
+    from qdcnn.quantum.circuits import CircuitBuilder
+    from qdcnn.quantum.noise import parse_noise
+    from qdcnn.quantum.simulator import probabilities
+    from qdcnn.quantum.templates import entangler_ranges, head_circuit
+
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-np.pi, np.pi, (6, 4))
+    w = rng.uniform(0, 2 * np.pi, (2, 4, 3))
+    noise = parse_noise("device:FakeMelbourneV2,route:swap")  # layer 2 has cx(0, 2)
+    head = probabilities(head_circuit(x, w), noise)
+    b = CircuitBuilder(4, 6)
+    for q in range(4):
+        b.ry(q, x[:, q])
+    for layer, r in zip(range(2), entangler_ranges(4, 2), strict=True):
+        for q in range(4):
+            phi, theta, omega = w[layer, q]
+            b.rz(q, phi).ry(q, theta).rz(q, omega)
+        for q in range(4):
+            b.cx(q, (q + r) % 4)
+    expanded = probabilities(b.build("expanded"), noise)
+    np.testing.assert_allclose(head, expanded, atol=1e-12)
+    ideal = probabilities(head_circuit(x, w))
+    assert np.abs(head - ideal).max() > 1e-4  # the device's noise does change the result

@@ -326,3 +326,27 @@ def test_shared_parameters_only_and_builder_circuits() -> None:
     template, x, w = CircuitBuilder(2, 1).h(0).cx(0, 1).build().as_template()
     psi = TorchCircuit(template).statevector(*_tensors(x, w))
     np.testing.assert_allclose(psi.numpy(), [[2**-0.5, 0, 0, 2**-0.5]], atol=1e-15)
+
+
+def test_device_noise_is_refused_with_where_it_runs() -> None:
+    pytest.importorskip("qiskit_ibm_runtime")
+    from qdcnn.errors import ParameterError
+    from qdcnn.quantum.noise import parse_noise
+    from qdcnn.quantum.templates import head_template
+    from qdcnn.quantum.torchsim.program import compile_template
+
+    with pytest.raises(ParameterError, match="device noise runs on the NumPy density-matrix"):
+        compile_template(head_template(2, 1), parse_noise("device:FakeManilaV2"))
+
+
+def test_readout_error_comes_through_the_noise_protocol() -> None:
+    from qdcnn.quantum.noise import NoiseSpec
+    from qdcnn.quantum.torchsim.program import readout_confusions
+
+    class Asymmetric:
+        def readout_matrices(self, n: int) -> list[np.ndarray]:
+            return [np.array([[0.9, 0.2], [0.1, 0.8]])] * n
+
+    assert readout_confusions(NoiseSpec(readout=0.0), 2) is None
+    got = readout_confusions(Asymmetric(), 3)
+    assert got is not None and len(got) == 3 and got[0][1, 0] == pytest.approx(0.1)

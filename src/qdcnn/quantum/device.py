@@ -549,6 +549,10 @@ def _lower_one_qubit(e: _NativeEmitter, g: Gate) -> None:
         e.gate("x", (q,))
     elif g.name == "z":
         e.rz(q, _PI)
+    elif g.name == "rot":  # Rot(phi, theta, omega) = RZ(omega) RY(theta) RZ(phi)
+        assert a is not None
+        for name, k in (("rz", 0), ("ry", 1), ("rz", 2)):
+            _lower_one_qubit(e, Gate(name, (q,), a[..., k]))
     else:
         raise ParameterError(
             "gate", g.name, "a gate with a native decomposition (see qdcnn.quantum.device)"

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
+from qdcnn.quantum import gates
 from qdcnn.quantum.circuits import CircuitBatch, Gate
 from qdcnn.quantum.noise import GateNoise, Kraus
 
@@ -202,7 +203,7 @@ _NATIVE_TWO_QUBIT: dict[str, NDArray[np.complex128]] = {
         [[0, 1, 0, 1j], [1, 0, -1j, 0], [0, 1j, 0, 1], [-1j, 0, 1, 0]], dtype=np.complex128
     )
     / np.sqrt(2),
-    "cz": np.diag([1, 1, 1, -1]).astype(np.complex128),
+    "cz": gates.CZ.astype(np.complex128),
 }
 
 

@@ -27,7 +27,6 @@ from numpy.typing import NDArray
 
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import TWO_QUBIT, CircuitTemplate, Gate
-from qdcnn.quantum.noise import NoiseSpec
 
 #: Largest register the PyTorch simulator accepts (a 256 x 256 density matrix per sample).
 MAX_QUBITS = 8
@@ -53,10 +52,29 @@ def gate_channels(noise: Any, gate: Gate) -> list[Channel]:
 
 
 def readout_confusions(noise: Any, num_qubits: int) -> list[NDArray[np.float64]] | None:
-    """Per-qubit readout matrices ``A[measured, prepared]``, or ``None`` without readout error."""
-    if not isinstance(noise, NoiseSpec) or noise.readout == 0.0:
-        return None
-    return [noise.readout_matrix()] * num_qubits
+    """Per-qubit readout matrices ``A[measured, prepared]``, or ``None`` without readout error.
+
+    Read through the noise protocol (:class:`qdcnn.quantum.noise.GateNoise`).
+    """
+    hook = getattr(noise, "readout_matrices", None)
+    matrices = None if hook is None else hook(num_qubits)
+    return None if matrices is None else [np.asarray(m, dtype=np.float64) for m in matrices]
+
+
+def check_template_noise(noise: Any) -> None:
+    """Refuse noise that rewrites circuits into a device's native gates.
+
+    Device noise (:class:`qdcnn.quantum.device.DeviceNoise`) prepares each bound circuit
+    in native gates on a layout; the PyTorch simulator runs symbolic templates, so such
+    noise is simulated by the NumPy density-matrix simulator instead.
+    """
+    if getattr(noise, "device", None) is not None:
+        raise ParameterError(
+            "noise",
+            noise.label(),
+            "a channel noise (NoiseSpec) for the PyTorch simulator; device noise runs on "
+            "the NumPy density-matrix simulator",
+        )
 
 
 @dataclass(frozen=True)
@@ -161,6 +179,7 @@ def _block(gates: Sequence[int], qubit_of: Sequence[int]) -> Block:
 
 def compile_template(template: CircuitTemplate, noise: Any = None) -> Program:
     """Group ``template``'s gates into steps for ``noise`` (``None``: noise-free)."""
+    check_template_noise(noise)
     n = template.num_qubits
     if not 1 <= n <= MAX_QUBITS:
         raise ParameterError("num_qubits", n, f"1 to {MAX_QUBITS} qubits for the PyTorch simulator")
