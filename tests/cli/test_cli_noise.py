@@ -227,3 +227,72 @@ def test_noise_sweep_table_output() -> None:
     assert "image-split-uu accuracy, synthetic-track1 (60 test frames)" in text
     assert "trained under noise; 128 shots; readout error 0.01" in text
     assert "0.5" in text and "depolar." in text
+
+
+def test_circuit_head_prints_expectations_and_probabilities() -> None:
+    from qdcnn.quantum.templates import head_readout
+
+    w = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2]
+    args = ["circuit", "head", "--qubits", "2", "--layers", "2", "--x", "0.3,-0.5"]
+    res = runner.invoke(app, [*args, "--weights", ",".join(map(str, w)), "--json"])
+    assert res.exit_code == 0, res.output
+    (obj,) = json_lines(res.stdout)
+    expected = head_readout([[0.3, -0.5]], np.reshape(w, (2, 2, 3)))
+    np.testing.assert_allclose(obj["probabilities"], expected["probabilities"][0], atol=1e-12)
+    np.testing.assert_allclose(obj["expectations"], expected["expectations"][0], atol=1e-12)
+    res = runner.invoke(app, [*args, "--weights", "0.1,0.2"])
+    assert (
+        res.exit_code == 2
+        and "weights='0.1,0.2' is invalid: 12 comma-separated angles" in res.stderr
+    )
+    res = runner.invoke(
+        app, ["circuit", "head", "--qubits", "9", "--layers", "1", "--weights", "0"]
+    )
+    assert res.exit_code == 2 and "qubits=9 is invalid" in res.stderr
+
+
+def test_the_trained_head_of_a_saved_model_exports_and_runs_on_aer(tmp_path: Path) -> None:
+    pytest.importorskip("torch")
+    pytest.importorskip("qiskit_qasm3_import")
+    pytest.importorskip("qiskit_aer")
+    from qiskit import qasm3, transpile
+    from qiskit_aer import AerSimulator
+
+    from qdcnn.config import PipelineConfig
+    from qdcnn.experiments.direction_model import train_direction_model
+    from qdcnn.experiments.methods import TrainingOptions
+
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 255, (12, 40, 80, 3), dtype=np.uint8)
+    options = TrainingOptions(epochs=1, threads=1, params={"val_fraction": 0.0})
+    model = train_direction_model(
+        "qdcnn-head", images, np.repeat([0, 1, 2], 4), PipelineConfig(), "toy", inner_folds=0,
+        options=options,
+    )  # fmt: skip
+    path = model.save(tmp_path / "hybrid.safetensors")
+    qasm = tmp_path / "head.qasm"
+    res = runner.invoke(
+        app,
+        [
+            "circuit",
+            "head",
+            "--model",
+            str(path),
+            "--x",
+            "0.1,0.2,0.3,0.4",
+            "--qasm",
+            str(qasm),
+            "--json",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    (obj,) = json_lines(res.stdout)
+    weights = model.estimator.model_.head.weights.detach().numpy().ravel()
+    np.testing.assert_allclose(obj["parameters"]["weights"], weights, atol=1e-7)
+    circuit = qasm3.loads(qasm.read_text())
+    counts = AerSimulator(method="statevector").run(
+        transpile(circuit), shots=20000, seed_simulator=1
+    )
+    hist = counts.result().get_counts()
+    aer = np.array([hist.get(format(i, "04b"), 0) for i in range(16)]) / 20000
+    assert np.abs(aer - np.array(obj["probabilities"])).max() < 0.02  # 20,000 shots

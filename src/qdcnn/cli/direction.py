@@ -14,7 +14,7 @@ from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.detect_lanes import DetectLanesResult, DetectLanesSpec, detect_lanes
 from qdcnn.experiments.direction_model import TrainDirectionSpec, train_direction
 from qdcnn.experiments.evaluate import EvaluationResult, EvaluationSpec, run_evaluation
-from qdcnn.experiments.methods import TrainingOptions
+from qdcnn.experiments.methods import TrainingOptions, with_head
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
 FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
@@ -45,6 +45,12 @@ EdgesOpt = Annotated[
 ]
 ShadowRemovalOpt = Annotated[
     bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
+]
+HeadOpt = Annotated[
+    str, typer.Option(help="Hybrid qdcnn-* methods: quantum | classical (the twin) | both.")
+]
+ContextOpt = Annotated[
+    int, typer.Option(help="Frames stacked as one CNN/hybrid input (this and the K-1 before).")
 ]
 ThreadsOpt = Annotated[
     int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
@@ -78,11 +84,13 @@ def pipeline_config(
 
 
 def training_options(
-    epochs: int, weights: Path | None, threads: int | None, progress: bool
+    epochs: int, weights: Path | None, threads: int | None, progress: bool, context: int = 1
 ) -> TrainingOptions:
     if threads is not None and threads < 1:
         raise ParameterError("threads", threads, "a positive integer")
-    return TrainingOptions(epochs=epochs, weights=weights, threads=threads, progress=progress)
+    return TrainingOptions(
+        epochs=epochs, weights=weights, threads=threads, progress=progress, context=context
+    )
 
 
 def evaluate_cmd(
@@ -102,6 +110,8 @@ def evaluate_cmd(
     edges: EdgesOpt = "grey",
     shadow_removal: ShadowRemovalOpt = True,
     threads: ThreadsOpt = None,
+    head: HeadOpt = "quantum",
+    context: ContextOpt = 1,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
     as_json: JsonOpt = False,
@@ -113,12 +123,12 @@ def evaluate_cmd(
         )
         spec = EvaluationSpec(
             data,
-            method,
+            with_head(method, head),
             config,
             folds,
             gap,
             inner_folds,
-            training_options(epochs, weights, threads, progress=not as_json),
+            training_options(epochs, weights, threads, not as_json, context),
             use_cache=cache,
         )
         result = run_evaluation(spec, CliReporter(as_json))
@@ -175,6 +185,8 @@ def train_direction_cmd(
     features: FeaturesOpt = "slopes",
     edges: EdgesOpt = "grey",
     shadow_removal: ShadowRemovalOpt = True,
+    head: HeadOpt = "quantum",
+    context: ContextOpt = 1,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
     as_json: JsonOpt = False,
@@ -190,11 +202,11 @@ def train_direction_cmd(
         spec = TrainDirectionSpec(
             data,
             out_file,
-            method,
+            with_head(method, "classical" if head == "classical" else "quantum"),
             config,
             inner_folds,
             gap,
-            training_options(epochs, weights, threads, progress=not as_json),
+            training_options(epochs, weights, threads, not as_json, context),
         )
         result = train_direction(spec, CliReporter(False))
     except QdcnnError as exc:

@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
-from qdcnn.cli.direction import ThresholdOpt, UnitOpt
+from qdcnn.cli.direction import EpochsOpt, ThreadsOpt, ThresholdOpt, UnitOpt, training_options
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.circuit import CircuitInspection, CircuitSpec, inspect_circuit
@@ -104,6 +104,8 @@ def noise_sweep_cmd(
     cache: CacheOpt = True,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
+    epochs: EpochsOpt = 25,
+    threads: ThreadsOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
@@ -124,7 +126,7 @@ def noise_sweep_cmd(
         spec = NoiseSweepSpec(
             data, methods, channels, p, phase_damping, grouping, train_under_noise, shots,
             readout, folds, gap, inner_folds, config, shadow_set, shadow_frames, plot, seed,
-            cache, shadow_thresholds,
+            cache, shadow_thresholds, training_options(epochs, None, threads, False),
         )  # fmt: skip
         run = run_noise_sweep(spec, CliReporter(False))
     except QdcnnError as exc:
@@ -151,14 +153,24 @@ def _print_sweep(run: NoiseSweepRun) -> None:
 
 
 def circuit_cmd(
-    kind: Annotated[str, typer.Argument(help="uu (UU-dagger fidelity test) | vqc (2-qubit VQC)")],
+    kind: Annotated[
+        str, typer.Argument(help="uu (UU-dagger test) | vqc (2-qubit VQC) | head (hybrid head)")
+    ],
     theta_c: Annotated[
         str | None, typer.Option("--theta-c", help="uu: centroid angle in radians (1.2, pi/2).")
     ] = None,
     theta_x: Annotated[str | None, typer.Option("--theta-x", help="uu: test-value angle.")] = None,
-    x: Annotated[str | None, typer.Option("--x", help="vqc: the feature-map angles X1,X2.")] = None,
+    x: Annotated[
+        str | None, typer.Option("--x", help="vqc: X1,X2; head: one encoding angle per qubit.")
+    ] = None,
     weights: Annotated[
-        str | None, typer.Option(help="vqc: ansatz angles W1,W2,W3,W4 (2 (reps + 1) of them).")
+        str | None,
+        typer.Option(help="vqc: W1..W4 (2 (reps + 1)); head: layers x qubits x 3 Rot angles."),
+    ] = None,
+    qubits: Annotated[int | None, typer.Option(help="head: qubits (1 to 8).")] = None,
+    layers: Annotated[int | None, typer.Option(help="head: entangling layers.")] = None,
+    model: Annotated[
+        Path | None, typer.Option(help="head: the trained head of a saved qdcnn-* model.")
     ] = None,
     feature_map_reps: Annotated[int, typer.Option(help="vqc: repetitions of the ZZ map.")] = 2,
     noise: Annotated[
@@ -179,8 +191,9 @@ def circuit_cmd(
     """
     try:
         spec = CircuitSpec(
-            kind, theta_c, theta_x, x, weights, feature_map_reps, noise, shots, backend, seed, qasm
-        )
+            kind, theta_c, theta_x, x, weights, feature_map_reps, noise, shots, backend, seed,
+            qasm, qubits, layers, False, model,
+        )  # fmt: skip
         result = inspect_circuit(spec, CliReporter(False))
     except QdcnnError as exc:
         raise fail(exc) from None

@@ -109,6 +109,13 @@ class CircuitSpec:
         Seed of the shots.
     qasm : path or None
         Write the circuit (measured) as OpenQASM 3 here.
+    qubits, layers : int or None
+        ``head``: the quantum head's qubits (1 to 8) and StronglyEntanglingLayers.
+    reupload : bool
+        ``head``: re-upload the encoding before every layer.
+    model : path or None
+        ``head``: take qubits, layers and weights from the quantum head of a saved hybrid
+        direction model (``train-direction --method qdcnn-head``).
     """
 
     kind: str
@@ -122,6 +129,10 @@ class CircuitSpec:
     backend: str = "numpy"
     seed: int = 0
     qasm: Path | None = None
+    qubits: int | None = None
+    layers: int | None = None
+    reupload: bool = False
+    model: Path | None = None
 
     def __post_init__(self) -> None:
         from qdcnn.quantum.execute import check_backend
@@ -174,6 +185,52 @@ def _build_vqc(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
     return circuit, {"x": xs, "weights": ws, "feature_map_reps": reps}
 
 
+def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
+    """The hybrid QDCNN's quantum head: RY encoding, then Rot layers and CNOT rings.
+
+    ``weights`` are the layers x qubits x 3 Rot angles flattened in that order
+    (PennyLane's ``StronglyEntanglingLayers`` shape); with ``model`` they come from the
+    trained head of a saved hybrid model.
+    """
+    from qdcnn.quantum.templates import head_circuit
+
+    if spec.model is not None:
+        weights, reupload = _trained_head(spec.model)
+        qubits, layers = weights.shape[1], weights.shape[0]
+    else:
+        if spec.qubits is None or spec.layers is None or spec.weights is None:
+            raise ParameterError(
+                "qubits/layers/weights", None, "--qubits, --layers and --weights (or --model)"
+            )
+        qubits = check_int("qubits", spec.qubits, 1, 8)
+        layers = check_int("layers", spec.layers, 1, 64)
+        flat = angle_list(spec.weights, "weights", layers * qubits * 3)
+        weights, reupload = np.reshape(flat, (layers, qubits, 3)), bool(spec.reupload)
+    xs = [0.0] * qubits if spec.x is None else angle_list(spec.x, "x", qubits)
+    circuit = head_circuit([xs], weights, reupload=reupload)
+    params = {
+        "x": xs,
+        "weights": np.asarray(weights).ravel().tolist(),
+        "qubits": qubits,
+        "layers": layers,
+        "reupload": reupload,
+    }
+    return circuit, params
+
+
+def _trained_head(path: Path) -> tuple[Any, bool]:
+    from qdcnn.experiments.direction_model import DirectionModel
+
+    model = DirectionModel.load(path)
+    network = getattr(model.estimator, "model_", None)
+    head = getattr(network, "head", None)
+    weights = getattr(head, "weights", None)
+    reupload = getattr(head, "reupload", None)
+    if weights is None or reupload is None:
+        raise ParameterError("model", str(path), "a hybrid model with a quantum head (qdcnn-*)")
+    return weights.detach().double().cpu().numpy(), bool(reupload)
+
+
 #: The circuit kinds, by name.
 CIRCUIT_KINDS: dict[str, CircuitKind] = {
     "uu": CircuitKind(
@@ -182,6 +239,12 @@ CIRCUIT_KINDS: dict[str, CircuitKind] = {
     "vqc": CircuitKind(
         "vqc", ("x", "weights", "feature_map_reps"), _build_vqc, "the paper's 2-qubit VQC"
     ),
+    "head": CircuitKind(
+        "head",
+        ("x", "weights", "qubits", "layers", "model"),
+        _build_head,
+        "the hybrid QDCNN's quantum head (StronglyEntanglingLayers)",
+    ),
 }
 #: Spec fields that only some kinds read (``None`` when not given), and their option names.
 _KIND_OPTIONS: dict[str, str] = {
@@ -189,6 +252,9 @@ _KIND_OPTIONS: dict[str, str] = {
     "theta_x": "theta-c/theta-x",
     "x": "x/weights",
     "weights": "x/weights",
+    "qubits": "qubits",
+    "layers": "layers",
+    "model": "model",
 }
 
 
@@ -230,6 +296,8 @@ class CircuitInspection:
         Basis states ``q(n-1)..q0``, in index order.
     probabilities : list of float
         Outcome probability per basis state.
+    expectations : list of float
+        ``<Z_i>`` of qubit ``i``, in qubit order.
     noise : str or None
         Label of the noise (``depolarizing:0.1``).
     qasm : path or None
@@ -245,6 +313,7 @@ class CircuitInspection:
     states: list[str]
     probabilities: list[float]
     noise: str | None = None
+    expectations: list[float] = field(default_factory=list)
     qasm: Path | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -279,6 +348,7 @@ class CircuitInspection:
             "seed": spec.seed,
             "states": self.states,
             "probabilities": self.probabilities,
+            "expectations": self.expectations,
             "qasm": None if self.qasm is None else str(self.qasm),
             "diagram": self.diagram,
         }
@@ -293,6 +363,7 @@ def inspect_circuit(spec: CircuitSpec, reporter: Reporter | None = None) -> Circ
     from qdcnn._optional import has_module
     from qdcnn.quantum.execute import run_probabilities
     from qdcnn.quantum.export import draw_text, write_qasm3
+    from qdcnn.quantum.templates import z_expectations
 
     report = reporter or Reporter()
     circuit, params = build_circuit(spec)
@@ -313,6 +384,7 @@ def inspect_circuit(spec: CircuitSpec, reporter: Reporter | None = None) -> Circ
         [format(i, f"0{n}b") for i in range(2**n)],
         [float(v) for v in probs],
         None if noise is None else noise.label(),
+        [float(z) for z in z_expectations(np.asarray(probs)[None])[0]],
     )
     if spec.qasm is not None:
         checked = has_module("qiskit_qasm3_import")

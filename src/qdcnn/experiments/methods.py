@@ -37,6 +37,7 @@ __all__ = [
     "register",
     "select_methods",
     "unregister",
+    "with_head",
 ]
 
 #: Lane groupings of the paper (Sec. II-A-3), in the paper's order.
@@ -59,6 +60,8 @@ class TrainingOptions:
         torch CPU threads (default: the CPUs this process may use).
     progress : bool
         Show training progress on stderr.
+    context : int
+        Frames stacked as one input (the frame and the ``context - 1`` before it).
     params : mapping
         Further estimator parameters (for studies).
     """
@@ -67,7 +70,16 @@ class TrainingOptions:
     weights: Path | None = None
     threads: int | None = None
     progress: bool = False
+    context: int = 1
     params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        from qdcnn._validation import check_int
+
+        check_int("epochs", self.epochs, 1, 10_000)
+        if self.threads is not None:
+            check_int("threads", self.threads, 1, 1024)
+        check_int("context", self.context, 1, 64)
 
 
 Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, Grid]]
@@ -248,7 +260,7 @@ def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEst
     return estimator, grid
 
 
-def _cnn_builder(arch: Literal["pilotnet", "resnet50"]) -> Builder:
+def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> Builder:
     def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
         from qdcnn.models.training import CNNDirectionClassifier
 
@@ -259,11 +271,48 @@ def _cnn_builder(arch: Literal["pilotnet", "resnet50"]) -> Builder:
             seed=config.seed,
             progress=options.progress,
             num_threads=options.threads,
+            context=options.context,
+            network_params=None if network_params is None else dict(network_params),
             **dict(options.params),
         )
         return estimator, {}
 
     return build
+
+
+#: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
+HYBRIDS: dict[str, str] = {
+    "qdcnn-head": "PilotNet trunk, then a 4-qubit variational quantum head",
+    "qdcnn-uuconv": "UU-dagger fidelity convolution, PilotNet trunk, quantum head",
+    "qdcnn-quanv": "quanvolution (fixed random 4-qubit circuits), PilotNet trunk, quantum head",
+}
+TWIN_SUFFIX = "-classical"
+
+
+def with_head(names: str, head: str) -> str:
+    """``names`` (a comma list) with each hybrid replaced by its ``head`` variant.
+
+    ``head`` is ``"quantum"`` (the names as given), ``"classical"`` (each hybrid's
+    classical twin) or ``"both"``; other methods pass through.
+
+    Examples
+    --------
+    >>> with_head("qdcnn-head,dnn-pilotnet", "both")
+    'qdcnn-head,qdcnn-head-classical,dnn-pilotnet'
+    """
+    if head not in ("quantum", "classical", "both"):
+        raise ParameterError("head", head, "'quantum', 'classical' or 'both'")
+    out: list[str] = []
+    for name in (n.strip() for n in names.split(",") if n.strip()):
+        base = name.removesuffix(TWIN_SUFFIX)
+        if base not in HYBRIDS:
+            out.append(name)
+            continue
+        if head in ("quantum", "both"):
+            out.append(base)
+        if head in ("classical", "both"):
+            out.append(base + TWIN_SUFFIX)
+    return ",".join(dict.fromkeys(out))
 
 
 _CLASSIFIERS: dict[str, tuple[Builder, str]] = {
@@ -293,6 +342,28 @@ register(
         summary="PilotNet CNN (Bojarski et al. 2016), classical baseline",
     )
 )
+for _name, _what in HYBRIDS.items():
+    register(
+        DirectionMethod(
+            _name,
+            "frames",
+            _cnn_builder(_name, {"head": "quantum"}),
+            "hybrid",
+            needs_torch=True,
+            quantum=True,
+            summary=_what,
+        )
+    )
+    register(
+        DirectionMethod(
+            _name + TWIN_SUFFIX,
+            "frames",
+            _cnn_builder(_name, {"head": "classical"}),
+            "hybrid-twin",
+            needs_torch=True,
+            summary=f"{_what}: its classical twin (an MLP head of the same parameter count)",
+        )
+    )
 register(
     DirectionMethod(
         "dnn-resnet50",

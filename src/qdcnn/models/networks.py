@@ -74,6 +74,15 @@ def _resnet50(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
     return resnet50(num_classes=num_classes, in_channels=in_channels, **kw)
 
 
+def _hybrid(name: str) -> NetworkFactory:
+    def build(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
+        from qdcnn.models.hybrid import build_hybrid
+
+        return build_hybrid(name, in_channels, num_classes=num_classes, **kw)
+
+    return build
+
+
 NETWORKS: dict[str, NetworkEntry] = {
     "pilotnet": NetworkEntry(_pilotnet, PILOTNET_INPUT, "qdcnn PilotNet"),
     "resnet50": NetworkEntry(
@@ -82,6 +91,15 @@ NETWORKS: dict[str, NetworkEntry] = {
         "torchvision ResNet-50",
         weights_skip=("fc.",),
         min_batch_size=2,
+    ),
+    # the hybrid QDCNN networks (PilotNet trunk; ``network_params={"head": "classical"}``
+    # gives the classical twin with the same number of parameters)
+    "qdcnn-head": NetworkEntry(_hybrid("qdcnn-head"), PILOTNET_INPUT, "qdcnn qdcnn-head"),
+    "qdcnn-uuconv": NetworkEntry(
+        _hybrid("qdcnn-uuconv"), PILOTNET_INPUT, "qdcnn qdcnn-uuconv", min_batch_size=2
+    ),
+    "qdcnn-quanv": NetworkEntry(
+        _hybrid("qdcnn-quanv"), PILOTNET_INPUT, "qdcnn qdcnn-quanv", min_batch_size=2
     ),
 }
 
@@ -116,7 +134,7 @@ def network_entry(arch: object) -> NetworkEntry:
     >>> network_entry("vgg")
     Traceback (most recent call last):
     ...
-    qdcnn.errors.ParameterError: arch='vgg' is invalid: one of 'pilotnet', 'resnet50'
+    qdcnn.errors.ParameterError: arch='vgg' is invalid: one of 'pilotnet', 'resnet50', ...
     """
     if not isinstance(arch, str) or arch not in NETWORKS:
         raise ParameterError("arch", arch, "one of " + ", ".join(map(repr, NETWORKS)))

@@ -96,9 +96,24 @@ class QuantumHead(nn.Module):
         self.weights = nn.Parameter(torch.rand(self.n_layers, self.n_qubits, 3) * (2 * math.pi))
         self.readout = nn.Linear(self.n_qubits, check_int("num_classes", num_classes, 1))
         self.circuit = TorchCircuit(
-            head_template(self.n_qubits, self.n_layers, reupload=self.reupload), noise
+            head_template(self.n_qubits, self.n_layers, reupload=self.reupload), None
         )
         self._shot_rng = np.random.default_rng(shot_seed)
+        self.set_noise(noise)
+
+    def set_noise(self, noise: Any) -> None:
+        """Run the circuit under ``noise`` from now on (``None``: noise-free).
+
+        Channel noise (:class:`~qdcnn.quantum.noise.NoiseSpec`) runs on the PyTorch
+        density matrix and stays differentiable. A device's noise
+        (:class:`~qdcnn.quantum.device.DeviceNoise`, which rewrites circuits into native
+        gates) is simulated by the NumPy density-matrix simulator: evaluation only, no
+        gradients.
+        """
+        self.noise = None if noise is None or noise.is_ideal else noise
+        self._numpy_noise = getattr(self.noise, "device", None) is not None
+        template = head_template(self.n_qubits, self.n_layers, reupload=self.reupload)
+        self.circuit = TorchCircuit(template, None if self._numpy_noise else self.noise)
 
     def angles(self, embedding: torch.Tensor) -> torch.Tensor:
         """Encoded angles ``pi * tanh(W e + b)``, shape ``(B, n_qubits)``."""
@@ -109,7 +124,27 @@ class QuantumHead(nn.Module):
         x = self.angles(embedding)
         w = self.weights.reshape(-1).to(x.dtype)
         shots = None if self.training else self.shots
+        if self._numpy_noise:
+            return self._device_expectations(x, shots)
         return self.circuit.expectations(x, w, shots=shots, rng=self._shot_rng)
+
+    def _device_expectations(self, x: torch.Tensor, shots: int | None) -> torch.Tensor:
+        from qdcnn.quantum.execute import run_probabilities
+        from qdcnn.quantum.templates import z_expectations
+
+        if self.training and torch.is_grad_enabled():
+            raise ParameterError(
+                "noise",
+                "device" if self.noise is None else self.noise.label(),
+                "channel noise to train under (device noise: eval only)",
+            )
+        circuits = head_circuit(
+            x.detach().double().cpu().numpy(),
+            self.weights.detach().double().cpu().numpy(),
+            reupload=self.reupload,
+        )
+        probs = run_probabilities(circuits, shots=shots, noise=self.noise, rng=self._shot_rng)
+        return torch.as_tensor(z_expectations(probs), dtype=x.dtype, device=x.device)
 
     def forward(self, embedding: torch.Tensor) -> torch.Tensor:
         """Logits ``(B, num_classes)`` for embeddings ``(B, in_features)``."""

@@ -141,10 +141,36 @@ def _is_plain(value: object) -> bool:
 
 
 def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
-    return {
-        k: (str(v) if isinstance(v, Path) else (list(v) if isinstance(v, tuple) else v))
-        for k, v in params.items()
-    }
+    def plain(v: Any) -> Any:
+        if isinstance(v, Path):
+            return str(v)
+        if isinstance(v, tuple):
+            return list(v)
+        if hasattr(v, "label") and hasattr(v, "is_ideal"):  # a noise model: by its label
+            return None if v.is_ideal else v.label()
+        return v
+
+    return {k: plain(v) for k, v in params.items()}
+
+
+def _as_noise(name: str, value: Any) -> Any:
+    """``value`` as a noise model: ``None``, a noise object, or its text (parsed)."""
+    if value is None or (hasattr(value, "label") and hasattr(value, "is_ideal")):
+        return value
+    if isinstance(value, str):
+        from qdcnn.quantum.noise import parse_noise
+
+        return parse_noise(value)
+    raise ParameterError(name, value, "None, a noise model or its text (depolarizing:0.1)")
+
+
+def _set_quantum_noise(network: Any, noise: Any, name: str) -> None:
+    """Put ``noise`` on every quantum layer of ``network``; refuse noise without one."""
+    layers = [m for m in network.modules() if hasattr(m, "set_noise")]
+    if noise is not None and not layers:
+        raise ParameterError(name, noise.label(), "None: this network has no quantum layer")
+    for layer in layers:
+        layer.set_noise(noise)
 
 
 class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
@@ -305,6 +331,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         crop: tuple[float, float] | None = None,
         context: int = 1,
         network_params: Mapping[str, Any] | None = None,
+        noise: Any = None,
+        train_noise: Any = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -330,6 +358,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.crop = crop
         self.context = context
         self.network_params = network_params
+        self.noise = noise
+        self.train_noise = train_noise
 
     # ----------------------------------------------------------------- checks
     def _checked(self) -> tuple[NetworkEntry, TrainSettings]:
@@ -363,6 +393,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         _check_crop(self.crop)
         check_int("context", self.context, 1, MAX_CONTEXT)
         _check_network_params(self.network_params)
+        _as_noise("noise", self.noise)
+        _as_noise("train_noise", self.train_noise)
         return entry, settings
 
     def _network_kw(self) -> dict[str, Any]:
@@ -439,6 +471,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         network = build_network(
             self.arch, 3 * k, weights=self.weights, seed=self.seed, **self._network_kw()
         )
+        _set_quantum_noise(network, _as_noise("train_noise", self.train_noise), "train_noise")
         samples = FrameSamples.sequence(crop_resize(x, spec), y, k)
         extra, extra_of = _extra_samples(views, spec, k)
         with rich_progress(self.arch, settings.epochs, enabled=self.progress) as callbacks:
@@ -452,12 +485,27 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             )
             result = trainer.fit(network, samples, extra=extra, extra_of=extra_of)
         self._set_fitted(result.network, spec, result.history, result.best_epoch)
+        _set_quantum_noise(self.model_, _as_noise("noise", self.noise), "noise")
         return self
 
     # -------------------------------------------------------------- inference
-    def predict_proba(self, images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.float64]:
-        """Class probabilities ``(N, 3)`` for left, straight, right."""
+    def predict_proba(
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+    ) -> NDArray[np.float64]:
+        """Class probabilities ``(N, 3)`` for left, straight, right.
+
+        ``noise`` (a :class:`~qdcnn.quantum.noise.NoiseSpec`, a device noise or its text,
+        e.g. ``"depolarizing:0.1"``) overrides the estimator's ``noise`` for this call; it
+        needs a network with a quantum layer (the hybrids).
+        """
         check_is_fitted(self, "model_")
+        if noise is not None:
+            previous = _as_noise("noise", self.noise)
+            _set_quantum_noise(self.model_, _as_noise("noise", noise), "noise")
+            try:
+                return self.predict_proba(images)
+            finally:
+                _set_quantum_noise(self.model_, previous, "noise")
         torch = _torch("CNN inference")
         from qdcnn.models.trainer import torch_session
 
@@ -487,9 +535,12 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         b, _, c, h, w = stacked.shape
         return normalise(stacked.reshape(b, k * c, h, w).to(self.device_), self.input_spec_)
 
-    def predict(self, images: ArrayLike | Sequence[NDArray[np.uint8]]) -> NDArray[np.int64]:
-        """Direction per frame: 0 = left, 1 = straight, 2 = right."""
-        return np.argmax(self.predict_proba(images), axis=1).astype(np.int64)
+    def predict(
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+    ) -> NDArray[np.int64]:
+        """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
+        :meth:`predict_proba`)."""
+        return np.argmax(self.predict_proba(images, noise), axis=1).astype(np.int64)
 
     def score(
         self,

@@ -44,7 +44,7 @@ from qdcnn._threads import single_thread
 from qdcnn._validation import check_optional_shots, check_probability
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.methods import DirectionMethod, get_method, method_names
+from qdcnn.experiments.methods import DirectionMethod, TrainingOptions, get_method, method_names
 from qdcnn.experiments.noise._rng import point_rng
 from qdcnn.experiments.noise.options import (
     DIRECTION_METHODS,
@@ -234,6 +234,7 @@ def direction_sweep(
     readout: float = 0.0,
     seed: int = 0,
     on_step: Callable[[], None] | None = None,
+    training: TrainingOptions | None = None,
 ) -> list[SweepRow]:
     """Direction accuracy of each method under each (channel, p).
 
@@ -267,6 +268,8 @@ def direction_sweep(
         Seed of the classifiers and of shot sampling.
     on_step : callable, optional
         Called after every (method, grouping, channel, p) point.
+    training : TrainingOptions, optional
+        Settings of frame methods (epochs, threads, context).
 
     Returns
     -------
@@ -298,7 +301,7 @@ def direction_sweep(
     with single_thread():
         for target in targets:
             X = inputs[target.inputs]
-            estimator, grid = target.method.estimator(replace(cfg, seed=seed))
+            estimator, grid = target.method.estimator(replace(cfg, seed=seed), training)
             _check_noise_aware(target, estimator, train_under_noise)
             fitted = [
                 (

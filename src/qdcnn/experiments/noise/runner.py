@@ -32,6 +32,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
 from qdcnn.errors import ParameterError
+from qdcnn.experiments.methods import TrainingOptions
 from qdcnn.experiments.noise.direction import FRAMES, SweepTarget, direction_sweep, sweep_targets
 from qdcnn.experiments.noise.options import (
     SHADOW_METHOD,
@@ -103,6 +104,8 @@ class NoiseSweepSpec:
     shadow_thresholds : {"grid", "paper"}
         Candidates of the shadow threshold: the fine grid ``train-shadows`` uses, or the
         paper's 0.75 and 0.97.
+    training : TrainingOptions
+        Settings of frame methods (the hybrids): epochs, threads, context.
     """
 
     data: str | None = None
@@ -124,6 +127,7 @@ class NoiseSweepSpec:
     seed: int = 0
     use_cache: bool = True
     shadow_thresholds: str = "grid"
+    training: TrainingOptions = field(default_factory=TrainingOptions)
 
     def __post_init__(self) -> None:
         if self.data is not None and not isinstance(self.data, str):
@@ -243,6 +247,7 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
                 readout=spec.readout,
                 seed=spec.seed,
                 on_step=advance,
+                training=spec.training,
             )
     if SHADOW_METHOD in methods:
         if spec.shadow_set is not None:

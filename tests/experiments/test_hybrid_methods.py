@@ -1,0 +1,140 @@
+"""The hybrid QDCNN methods through the registry: evaluation, files, noise."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+cv2 = pytest.importorskip("cv2")
+
+from qdcnn.config import PipelineConfig  # noqa: E402
+from qdcnn.errors import ParameterError  # noqa: E402
+from qdcnn.experiments.direction_model import DirectionModel, train_direction_model  # noqa: E402
+from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
+from qdcnn.experiments.methods import TrainingOptions, get_method, with_head  # noqa: E402
+from qdcnn.experiments.noise.direction import direction_sweep  # noqa: E402
+
+OPTIONS = TrainingOptions(
+    epochs=6, threads=1, params={"lr_schedule": "constant", "val_fraction": 0.0}
+)
+
+
+def lean_frames(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Frames with one bright line leaning left (0), upright (1) or right (2), in blocks."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat(np.arange(n // 10) % 3, 10).astype(np.int64)
+    images = np.empty((len(labels), 40, 80, 3), np.uint8)
+    for i, label in enumerate(labels):
+        img = (60 + rng.integers(0, 20, (40, 80, 3))).astype(np.uint8)
+        x0 = 40 + rng.uniform(-6, 6)
+        lean = (-1, 0, 1)[label] * rng.uniform(0.6, 1.0) * 40
+        cv2.line(img, (int(x0), 39), (int(x0 + lean), 0), (240, 240, 240), 3)
+        images[i] = img
+    return images, labels
+
+
+class _Frames:
+    """An in-memory FrameSet stand-in for evaluate_frames."""
+
+    def __init__(self, images: np.ndarray) -> None:
+        self.images, self.name, self.spec, self.problems = images, "toy", "toy", []
+        self.sources = [f"toy:{i}" for i in range(len(images))]
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def image(self, i: int) -> np.ndarray:
+        return self.images[i]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("method", "epochs"),
+    [("qdcnn-head", 6), ("qdcnn-head-classical", 6), ("qdcnn-uuconv", 15), ("qdcnn-quanv", 15)],
+)
+def test_hybrids_learn_under_the_shared_folds(method: str, epochs: int) -> None:
+    images, labels = lean_frames(120)
+    options = TrainingOptions(epochs=epochs, threads=1, params=dict(OPTIONS.params))
+    res, failures = evaluate_frames(
+        method,
+        _Frames(images),  # type: ignore[arg-type]
+        labels,
+        config=PipelineConfig(seed=1),
+        options=options,
+        folds=3,
+        gap=2,
+    )
+    assert not failures and res.method == method
+    assert res.accuracy > res.majority_baseline + 0.2
+
+
+def test_with_head_picks_twins() -> None:
+    assert with_head("qdcnn-head", "classical") == "qdcnn-head-classical"
+    assert with_head("qdcnn-quanv,kmeans-uu", "quantum") == "qdcnn-quanv,kmeans-uu"
+    assert get_method("qdcnn-head").quantum and not get_method("qdcnn-head-classical").quantum
+    with pytest.raises(ParameterError, match="head='twin' is invalid"):
+        with_head("qdcnn-head", "twin")
+
+
+@pytest.fixture(scope="module")
+def trained() -> tuple[DirectionModel, np.ndarray, np.ndarray]:
+    images, labels = lean_frames(60, seed=2)
+    model = train_direction_model(
+        "qdcnn-head", images, labels, PipelineConfig(seed=0), "toy", inner_folds=0, options=OPTIONS
+    )
+    return model, images, labels
+
+
+def test_a_hybrid_model_file_round_trips(trained, tmp_path: Path) -> None:
+    model, images, _ = trained
+    back = DirectionModel.load(model.save(tmp_path / "hybrid.safetensors"))
+    np.testing.assert_allclose(back.predict_proba(images), model.predict_proba(images), atol=1e-9)
+    head = back.estimator.model_.head
+    np.testing.assert_array_equal(
+        head.weights.detach(), model.estimator.model_.head.weights.detach()
+    )
+
+
+def test_noise_reaches_the_quantum_head_and_only_it(trained) -> None:
+    model, images, _ = trained
+    clean = model.estimator.predict_proba(images)
+    full = model.estimator.predict_proba(images, noise="depolarizing:1.0")
+    # fully depolarised: <Z_i> = 0 for every frame, so every frame gets the same probabilities
+    np.testing.assert_allclose(full, np.broadcast_to(full[0], full.shape), atol=1e-9)
+    assert np.abs(full - clean).max() > 1e-3
+    np.testing.assert_allclose(model.estimator.predict_proba(images), clean, atol=0)  # restored
+    pilot = train_direction_model(
+        "dnn-pilotnet", images, np.repeat([0, 1, 2], 20), PipelineConfig(), "toy", inner_folds=0,
+        options=TrainingOptions(epochs=1, threads=1, params={"val_fraction": 0.0}),
+    )  # fmt: skip
+    with pytest.raises(ParameterError, match="this network has no quantum layer"):
+        pilot.estimator.predict(images, noise="bit-flip:0.1")
+
+
+def test_device_noise_runs_the_head_on_the_numpy_simulator(trained) -> None:
+    pytest.importorskip("qiskit_ibm_runtime")
+    model, images, _ = trained
+    clean = model.estimator.predict_proba(images[:6])
+    device = model.estimator.predict_proba(images[:6], noise="device:FakeMelbourneV2,route:swap")
+    assert np.all(np.isfinite(device)) and 1e-6 < np.abs(device - clean).max() < 0.5
+
+
+@pytest.mark.slow
+def test_the_noise_sweep_runs_a_hybrid() -> None:
+    images, labels = lean_frames(90, seed=3)
+    rows = direction_sweep(
+        {"frames": images},
+        labels,
+        methods=["qdcnn-head"],
+        channels=["depolarizing"],
+        strengths=[0.0, 1.0],
+        folds=3,
+        gap=2,
+        inner_folds=0,
+        training=OPTIONS,
+    )
+    by_p = {r.p: r.accuracy for r in rows}
+    assert by_p[0.0] > 0.6 and by_p[1.0] <= 0.5  # fully depolarised, the head sees nothing
