@@ -138,3 +138,36 @@ def test_a_gap_as_long_as_a_fold_is_refused(tmp_path, monkeypatch) -> None:
         ParameterError, match="gap=20 is invalid: smaller than the shortest test block"
     ):
         run_evaluation(spec)
+
+
+@pytest.mark.slow
+def test_folds_on_a_local_dask_cluster_give_the_same_scores(tmp_path, monkeypatch) -> None:
+    pytest.importorskip("distributed")
+    from qdcnn.experiments.noise.runner import NoiseSweepSpec, run_noise_sweep
+
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    spec = EvaluationSpec("synthetic:track2:200", "image-split-uu,kmeans-vqc", folds=3, gap=2)
+    here = run_evaluation(spec)
+    there = run_evaluation(replace(spec, scheduler="local:2"))
+    for a, b in zip(here.results, there.results, strict=True):
+        assert a.confusion == b.confusion
+        assert a.extra["chosen_hyperparameters"] == b.extra["chosen_hyperparameters"]
+    sweep = NoiseSweepSpec(
+        data="synthetic:track2:200",
+        methods="uu",
+        channels="bit-flip,depolarizing",
+        p="0,0.5",
+        folds=3,
+    )
+    rows = run_noise_sweep(sweep).to_dicts()
+    assert run_noise_sweep(replace(sweep, scheduler="local:2")).to_dicts() == rows
+
+
+def test_a_scheduler_that_does_not_answer_is_a_one_line_error(tmp_path, monkeypatch) -> None:
+    pytest.importorskip("distributed")
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    spec = EvaluationSpec(
+        "synthetic:track2:200", "image-split-uu", folds=3, scheduler="tcp://127.0.0.1:9"
+    )
+    with pytest.raises(InputError, match="127.0.0.1:9"):
+        run_evaluation(spec)

@@ -12,7 +12,6 @@ from qdcnn.errors import ParameterError
 from qdcnn.experiments.protocol import (
     ContiguousKFold,
     CrossValidation,
-    cross_validate,
     fit_with_search,
     majority_baseline,
     pooled_accuracy,
@@ -113,9 +112,3 @@ def test_inner_search_keeps_the_gap_around_its_test_blocks() -> None:
         left_out = np.setdiff1d(np.arange(60), train)
         assert len(left_out) >= 20 + 4  # a 20-frame test block plus at least one 4-frame gap
     assert len(_Recorder.seen[-1]) == 60  # refit on everything
-
-
-def test_cross_validate_refuses_a_fold_that_trains_on_one_class() -> None:
-    y = np.repeat([0, 1], [5, 45])
-    with pytest.raises(ParameterError, match="fold 1 trains on 'straight' only"):
-        cross_validate(lambda: (_Recorder(), {}), np.zeros((50, 1)), y, folds=10, gap=0)

@@ -46,6 +46,9 @@ EdgesOpt = Annotated[
 ShadowRemovalOpt = Annotated[
     bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
 ]
+SchedulerOpt = Annotated[
+    str | None, typer.Option(help="Run folds on Dask: local:N (N workers) or tcp://HOST:PORT.")
+]
 HeadOpt = Annotated[
     str, typer.Option(help="Hybrid qdcnn-* methods: quantum | classical (the twin) | both.")
 ]
@@ -114,6 +117,7 @@ def evaluate_cmd(
     context: ContextOpt = 1,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
+    scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
@@ -130,6 +134,7 @@ def evaluate_cmd(
             inner_folds,
             training_options(epochs, weights, threads, not as_json, context),
             use_cache=cache,
+            scheduler=scheduler,
         )
         result = run_evaluation(spec, CliReporter(as_json))
     except QdcnnError as exc:

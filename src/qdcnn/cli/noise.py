@@ -9,7 +9,14 @@ import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
-from qdcnn.cli.direction import EpochsOpt, ThreadsOpt, ThresholdOpt, UnitOpt, training_options
+from qdcnn.cli.direction import (
+    EpochsOpt,
+    SchedulerOpt,
+    ThreadsOpt,
+    ThresholdOpt,
+    UnitOpt,
+    training_options,
+)
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.circuit import CircuitInspection, CircuitSpec, inspect_circuit
@@ -106,6 +113,7 @@ def noise_sweep_cmd(
     label_threshold: ThresholdOpt = None,
     epochs: EpochsOpt = 25,
     threads: ThreadsOpt = None,
+    scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
@@ -126,7 +134,7 @@ def noise_sweep_cmd(
         spec = NoiseSweepSpec(
             data, methods, channels, p, phase_damping, grouping, train_under_noise, shots,
             readout, folds, gap, inner_folds, config, shadow_set, shadow_frames, plot, seed,
-            cache, shadow_thresholds, training_options(epochs, None, threads, False),
+            cache, shadow_thresholds, training_options(epochs, None, threads, False), scheduler,
         )  # fmt: skip
         run = run_noise_sweep(spec, CliReporter(False))
     except QdcnnError as exc:

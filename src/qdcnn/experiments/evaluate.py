@@ -56,13 +56,18 @@ def evaluate_features(
     gap: int = 5,
     inner_folds: int = 3,
     frames_without_lines: int = 0,
+    executor: Any = None,
 ) -> MethodResult:
-    """Cross-validate one lane method on precomputed lane features ``X`` with labels ``y``."""
+    """Cross-validate one lane method on precomputed lane features ``X`` with labels ``y``.
+
+    ``executor`` (:class:`~qdcnn.experiments.scheduler.Executor`) runs the folds on a
+    Dask cluster; the result is the same as in this process.
+    """
     m = get_method(method) if isinstance(method, str) else method
     cfg = config or PipelineConfig()
     check_labels_usable(y, source=dataset)
     cv = cross_validate(
-        lambda: m.estimator(cfg), X, y, folds=folds, gap=gap, inner_folds=inner_folds
+        _Build(m, cfg), X, y, folds=folds, gap=gap, inner_folds=inner_folds, executor=executor
     )
     return summarise(
         m.name,
@@ -83,6 +88,7 @@ def evaluate_frames(
     options: TrainingOptions | None = None,
     folds: int = 5,
     gap: int = 5,
+    executor: Any = None,
 ) -> tuple[MethodResult, list[Failure]]:
     """Cross-validate one frame method (a CNN) on the readable frames of ``frames``.
 
@@ -103,13 +109,14 @@ def evaluate_frames(
     y = np.asarray(labels, dtype=np.int64)[keep]
     check_labels_usable(y, source=frames.spec)
     cv = cross_validate(
-        lambda: m.estimator(cfg, opts),
+        _Build(m, cfg, opts),
         images[keep],
         y,
         folds=folds,
         gap=gap,
         inner_folds=0,
         keep_estimators=True,
+        executor=executor,
     )
     extra: dict[str, Any] = {
         "folds": folds,
@@ -120,6 +127,18 @@ def evaluate_frames(
         "settings": _settings(cv.estimators[-1]) if cv.estimators else {},
     }
     return summarise(m.name, frames.name, y, cv, extra=extra), failures
+
+
+@dataclass(frozen=True)
+class _Build:
+    """A picklable ``build()``: the method's fresh estimator and grid (folds may run on Dask)."""
+
+    method: DirectionMethod
+    config: PipelineConfig
+    options: TrainingOptions | None = None
+
+    def __call__(self) -> tuple[Any, Any]:
+        return self.method.estimator(self.config, self.options)
 
 
 def _settings(estimator: Any) -> dict[str, Any]:
@@ -151,6 +170,9 @@ class EvaluationSpec:
         Reuse cached lane features.
     has_torch, has_gpu : bool or None
         What ``all`` may include; ``None`` asks the installation.
+    scheduler : str or None
+        Where the folds run: ``None`` (this process), ``local:N`` or ``tcp://HOST:PORT``
+        (:class:`~qdcnn.experiments.scheduler.Executor`, the ``dask`` extra).
     """
 
     data: str
@@ -163,6 +185,7 @@ class EvaluationSpec:
     use_cache: bool = True
     has_torch: bool | None = None
     has_gpu: bool | None = None
+    scheduler: str | None = None
 
     def __post_init__(self) -> None:
         check_int("folds", self.folds, 2, 10_000)
@@ -217,17 +240,47 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
     result = EvaluationResult(
         frames.name,
         len(frames),
-        {"folds": spec.folds, "gap": spec.gap, "inner_folds": spec.inner_folds},
+        {
+            "folds": spec.folds,
+            "gap": spec.gap,
+            "inner_folds": spec.inner_folds,
+            "scheduler": spec.scheduler,
+        },
         notes=notes,
     )
     _add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
     result.labels = label_summary(frames, spec.config, report)
+    with executor_for(spec.scheduler) as executor:
+        _evaluate_all(spec, frames, methods, result, report, executor)
+    return result
+
+
+def executor_for(scheduler: str | None) -> Any:
+    """A context giving the :class:`~qdcnn.experiments.scheduler.Executor` of ``scheduler``
+    (``None``: no executor, everything in this process)."""
+    from contextlib import nullcontext
+
+    if scheduler is None:
+        return nullcontext(None)
+    from qdcnn.experiments.scheduler import Executor
+
+    return Executor(scheduler)
+
+
+def _evaluate_all(
+    spec: EvaluationSpec,
+    frames: FrameSet,
+    methods: list[DirectionMethod],
+    result: EvaluationResult,
+    report: Reporter,
+    executor: Any,
+) -> None:
     lane_methods = [m for m in methods if m.inputs == "lanes"]
     if lane_methods:
         lanes = _lane_data(spec, frames, lane_methods, report)
         _add_failures(result, lanes.table.failures, report)
         for m in lane_methods:
-            res = _evaluate_lane_method(spec, m, lanes)
+            res = _evaluate_lane_method(spec, m, lanes, executor)
             res.extra["labels"] = result.labels
             result.results.append(res)
             report.result(res.to_dict())
@@ -240,12 +293,12 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
             options=spec.training,
             folds=spec.folds,
             gap=spec.gap,
+            executor=executor,
         )
         _add_failures(result, failures, report)
         res.extra["labels"] = result.labels
         result.results.append(res)
         report.result(res.to_dict())
-    return result
 
 
 def label_summary(frames: FrameSet, config: PipelineConfig, report: Reporter) -> dict[str, Any]:
@@ -277,7 +330,7 @@ def _lane_data(
 
 
 def _evaluate_lane_method(
-    spec: EvaluationSpec, m: DirectionMethod, lanes: LaneData
+    spec: EvaluationSpec, m: DirectionMethod, lanes: LaneData, executor: Any = None
 ) -> MethodResult:
     assert m.grouping is not None
     res = evaluate_features(
@@ -290,6 +343,7 @@ def _evaluate_lane_method(
         gap=spec.gap,
         inner_folds=spec.inner_folds,
         frames_without_lines=lanes.table.frames_without_lines(m.grouping),
+        executor=executor,
     )
     res.extra["pipeline_ms_per_frame"] = 1e3 * lanes.table.seconds_per_frame
     return res

@@ -90,20 +90,6 @@ class CrossValidation:
     seconds: float = 0.0
 
 
-def check_training_classes(y: NDArray[np.int64], splits: Sequence[Split]) -> None:
-    """Every fold's training frames must hold at least two classes, or the fold is refused."""
-    for i, (train, _) in enumerate(splits):
-        present = np.unique(y[train])
-        if present.size < 2:
-            only = DIRECTIONS[int(present[0])] if present.size else "nothing"
-            raise ParameterError(
-                "folds",
-                len(splits),
-                f"folds whose training frames hold two classes or more (fold {i + 1} trains on "
-                f"'{only}' only: use fewer folds or more data)",
-            )
-
-
 def cross_validate(
     build: Callable[[], tuple[BaseEstimator, Mapping[str, Sequence[Any]]]],
     X: ArrayLike,
@@ -114,6 +100,7 @@ def cross_validate(
     inner_folds: int = 3,
     keep_estimators: bool = False,
     on_fold: Callable[[int], None] | None = None,
+    executor: Any = None,
 ) -> CrossValidation:
     """Train and test one method on each contiguous fold.
 
@@ -132,26 +119,56 @@ def cross_validate(
         Keep each fold's fitted estimator (noise sweeps predict with them again).
     on_fold : callable, optional
         Called with the fold index after each fold.
+    executor : Executor, optional
+        Where the folds run (:class:`qdcnn.experiments.scheduler.Executor`: this
+        process, or workers of a Dask cluster); the results are the same either way.
     """
     y = np.asarray(y, dtype=np.int64)
     splits = list(ContiguousKFold(folds, gap).split(y))
-    check_training_classes(y, splits)
     x = np.asarray(X) if not isinstance(X, np.ndarray) else X
     t0 = time.perf_counter()
+    tasks = [(i, train, test) for i, (train, test) in enumerate(splits)]
+    done: dict[int, tuple[NDArray[np.int64], dict[str, Any], Any]] = {}
+    if executor is None:
+        for task in tasks:
+            done[task[0]] = _fit_fold(task, build, x, y, inner_folds, gap)
+            if on_fold:
+                on_fold(task[0])
+    else:
+        for task, outcome in executor.map_unordered(
+            _fit_fold, tasks, build, x, y, inner_folds, gap
+        ):
+            if hasattr(outcome, "error") and hasattr(outcome, "kind"):  # a TaskFailure
+                raise ParameterError("fold", task[0] + 1, f"a fold that trains ({outcome.error})")
+            done[task[0]] = outcome
+            if on_fold:
+                on_fold(task[0])
     out = CrossValidation(splits, [], [])
-    for i, (train, test) in enumerate(splits):
-        estimator, grid = build()
-        fitted, chosen = fit_with_search(
-            estimator, grid, x[train], y[train], inner_folds=inner_folds, gap=gap
-        )
-        out.predictions.append(np.asarray(fitted.predict(x[test]), dtype=np.int64))
+    for i in range(len(splits)):
+        predictions, chosen, fitted = done[i]
+        out.predictions.append(predictions)
         out.chosen.append(chosen)
         if keep_estimators:
             out.estimators.append(fitted)
-        if on_fold:
-            on_fold(i)
     out.seconds = time.perf_counter() - t0
     return out
+
+
+def _fit_fold(
+    task: tuple[int, NDArray[np.intp], NDArray[np.intp]],
+    build: Callable[[], tuple[BaseEstimator, Mapping[str, Sequence[Any]]]],
+    x: NDArray[Any],
+    y: NDArray[np.int64],
+    inner_folds: int,
+    gap: int,
+) -> tuple[NDArray[np.int64], dict[str, Any], Any]:
+    """One fold: choose and fit on the training rows, predict the test rows."""
+    _, train, test = task
+    estimator, grid = build()
+    fitted, chosen = fit_with_search(
+        estimator, grid, x[train], y[train], inner_folds=inner_folds, gap=gap
+    )
+    return np.asarray(fitted.predict(x[test]), dtype=np.int64), chosen, fitted
 
 
 def pooled_accuracy(

@@ -53,7 +53,12 @@ from qdcnn.experiments.noise.options import (
     check_grid,
 )
 from qdcnn.experiments.noise.results import SweepRow
-from qdcnn.experiments.protocol import ContiguousKFold, fit_with_search, majority_baseline
+from qdcnn.experiments.protocol import (
+    ContiguousKFold,
+    cross_validate,
+    fit_with_search,
+    majority_baseline,
+)
 from qdcnn.quantum.noise import PAPER_CHANNELS, NoiseSpec
 
 __all__ = [
@@ -235,6 +240,7 @@ def direction_sweep(
     seed: int = 0,
     on_step: Callable[[], None] | None = None,
     training: TrainingOptions | None = None,
+    executor: Any = None,
 ) -> list[SweepRow]:
     """Direction accuracy of each method under each (channel, p).
 
@@ -270,6 +276,9 @@ def direction_sweep(
         Called after every (method, grouping, channel, p) point.
     training : TrainingOptions, optional
         Settings of frame methods (epochs, threads, context).
+    executor : Executor, optional
+        Where the folds and the (channel, p) points run
+        (:class:`qdcnn.experiments.scheduler.Executor`); the rows are the same either way.
 
     Returns
     -------
@@ -298,46 +307,89 @@ def direction_sweep(
     truth = np.concatenate([labels[test] for _, test in splits])
     majority = majority_baseline(labels, splits)
     rows: list[SweepRow] = []
+    grid_points = [(channel, float(p)) for channel in channels for p in strengths]
     with single_thread():
         for target in targets:
             X = inputs[target.inputs]
             estimator, grid = target.method.estimator(replace(cfg, seed=seed), training)
             _check_noise_aware(target, estimator, train_under_noise)
-            fitted = [
-                (
-                    train,
-                    test,
-                    fit_with_search(
-                        estimator, grid, X[train], labels[train], inner_folds=inner_folds, gap=gap
-                    )[0],
-                )
-                for train, test in splits
-            ]
-            for channel in channels:
-                for p in strengths:
-                    noise = NoiseSpec(channel, float(p), readout)
-                    models = [
-                        (
-                            test,
-                            clone(est).set_params(train_noise=noise).fit(X[train], labels[train])
-                            if train_under_noise
-                            else est,
-                        )
-                        for train, test, est in fitted
-                    ]
-                    gen = point_rng(seed, target.row_method, target.grouping, channel, p)
-                    pred = predict_folds(models, X, noise, shots=shots, rng=gen)
-                    rows.append(
-                        SweepRow(
-                            target.row_method,
-                            target.grouping,
-                            channel,
-                            float(p),
-                            float(np.mean(pred == truth)),
-                            int(truth.size),
-                            majority,
-                        )
-                    )
+            cv = cross_validate(
+                _Fresh(estimator, grid),
+                X,
+                labels,
+                folds=folds,
+                gap=gap,
+                inner_folds=inner_folds,
+                keep_estimators=True,
+                executor=executor,
+            )
+            fitted = [(tr, te, est) for (tr, te), est in zip(splits, cv.estimators, strict=True)]
+            point = _SweepPoint(
+                target, X, labels, truth, majority, readout, shots, seed, train_under_noise
+            )
+            results: dict[tuple[str, float], SweepRow] = {}
+            if executor is None:
+                for task in grid_points:
+                    results[task] = point(task, fitted)
                     if on_step:
                         on_step()
+            else:
+                for task, row in executor.map_unordered(point, grid_points, fitted):
+                    if isinstance(row, SweepRow):
+                        results[task] = row
+                    else:
+                        raise ParameterError("noise point", task, f"one that runs ({row})")
+                    if on_step:
+                        on_step()
+            rows += [results[task] for task in grid_points]
     return rows
+
+
+@dataclass(frozen=True)
+class _Fresh:
+    """A picklable ``build()`` for the folds: a fresh clone of one estimator and its grid."""
+
+    estimator: Any
+    grid: Mapping[str, Sequence[Any]]
+
+    def __call__(self) -> tuple[Any, Mapping[str, Sequence[Any]]]:
+        return clone(self.estimator), self.grid
+
+
+@dataclass(frozen=True)
+class _SweepPoint:
+    """One (channel, p) point of one method: the folds' models under that noise."""
+
+    target: SweepTarget
+    X: NDArray[Any]
+    labels: NDArray[np.int64]
+    truth: NDArray[np.int64]
+    majority: float
+    readout: float
+    shots: int | None
+    seed: int
+    train_under_noise: bool
+
+    def __call__(
+        self,
+        task: tuple[str, float],
+        fitted: Sequence[tuple[NDArray[np.intp], NDArray[np.intp], Any]],
+    ) -> SweepRow:
+        channel, p = task
+        noise = NoiseSpec(channel, p, self.readout)
+        models = [
+            (
+                test,
+                clone(est).set_params(train_noise=noise).fit(self.X[train], self.labels[train])
+                if self.train_under_noise
+                else est,
+            )
+            for train, test, est in fitted
+        ]
+        t = self.target
+        gen = point_rng(self.seed, t.row_method, t.grouping, channel, p)
+        pred = predict_folds(models, self.X, noise, shots=self.shots, rng=gen)
+        accuracy = float(np.mean(pred == self.truth))
+        return SweepRow(
+            t.row_method, t.grouping, channel, p, accuracy, int(self.truth.size), self.majority
+        )

@@ -32,6 +32,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
 from qdcnn.errors import ParameterError
+from qdcnn.experiments.evaluate import executor_for
 from qdcnn.experiments.methods import TrainingOptions
 from qdcnn.experiments.noise.direction import FRAMES, SweepTarget, direction_sweep, sweep_targets
 from qdcnn.experiments.noise.options import (
@@ -106,6 +107,9 @@ class NoiseSweepSpec:
         paper's 0.75 and 0.97.
     training : TrainingOptions
         Settings of frame methods (the hybrids): epochs, threads, context.
+    scheduler : str or None
+        Where folds and (channel, p) points run: ``None`` (this process), ``local:N`` or
+        ``tcp://HOST:PORT`` (the ``dask`` extra); the rows are the same.
     """
 
     data: str | None = None
@@ -128,6 +132,7 @@ class NoiseSweepSpec:
     use_cache: bool = True
     shadow_thresholds: str = "grid"
     training: TrainingOptions = field(default_factory=TrainingOptions)
+    scheduler: str | None = None
 
     def __post_init__(self) -> None:
         if self.data is not None and not isinstance(self.data, str):
@@ -230,7 +235,10 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
         fail(bad)
         dataset = frames.name
         protocol.update(folds=spec.folds, gap=spec.gap, inner_folds=spec.inner_folds)
-        with report.progress(len(targets) * n_points, "noise sweep") as advance:
+        with (
+            report.progress(len(targets) * n_points, "noise sweep") as advance,
+            executor_for(spec.scheduler) as executor,
+        ):
             rows += direction_sweep(
                 inputs,
                 y,
@@ -248,6 +256,7 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
                 seed=spec.seed,
                 on_step=advance,
                 training=spec.training,
+                executor=executor,
             )
     if SHADOW_METHOD in methods:
         if spec.shadow_set is not None:
