@@ -125,7 +125,7 @@ def test_circuit_aer_and_shots() -> None:
         (["vqc", "--x", "1,2"], "both --x X1,X2 and --weights"),
         (["vqc", "--x", "1", "--weights", "1,2,3,4"], "x='1' is invalid: 2 comma-separated"),
         (["vqc", "--x", "1,2", "--weights", "1,2,3"], "weights='1,2,3' is invalid"),
-        (["ghz"], "circuit='ghz' is invalid: 'uu' or 'vqc'"),
+        (["ghz"], "circuit='ghz' is invalid: 'uu', 'vqc' or 'head'"),
         (["uu", "--theta-c", "1", "--theta-x", "y"], "theta-x='y' is invalid"),
         (["uu", "--theta-c", "1", "--theta-x", "2", "--backend", "gpu"], "backend='gpu'"),
         (["uu", "--theta-c", "1", "--theta-x", "2", "--shots", "0"], "shots=0 is invalid"),

@@ -55,6 +55,7 @@ def test_uu_exact_and_noisy() -> None:
         "seed",
         "states",
         "probabilities",
+        "expectations",
         "qasm",
         "diagram",
     }
@@ -132,7 +133,7 @@ def test_aer_and_shots() -> None:
             {"kind": "vqc", "x": "1,2", "weights": "1,2,3,4", "feature_map_reps": 0},
             "feature-map-reps=0 is invalid",
         ),
-        ({"kind": "ghz"}, "circuit='ghz' is invalid: 'uu' or 'vqc'"),
+        ({"kind": "ghz"}, "circuit='ghz' is invalid: 'uu', 'vqc' or 'head'"),
         ({"kind": "uu", "theta_c": "1", "theta_x": "y"}, "theta-x='y' is invalid"),
         ({"kind": "uu", "theta_c": "1", "theta_x": "2", "backend": "gpu"}, "backend='gpu'"),
         ({"kind": "uu", "theta_c": "1", "theta_x": "2", "shots": 0}, "shots=0 is invalid"),
@@ -156,7 +157,11 @@ def test_a_new_kind_is_one_table_entry(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(CIRCUIT_KINDS, "pair", CircuitKind("pair", ("x",), build_pair))
     res = inspect_circuit(CircuitSpec("pair", x="0,pi"))
     np.testing.assert_allclose(res.probabilities, [0.0, 1.0], atol=1e-12)
-    with pytest.raises(ParameterError, match="circuit='ghz' is invalid: 'uu', 'vqc' or 'pair'"):
+    with pytest.raises(
+        ParameterError, match="circuit='ghz' is invalid: 'uu', 'vqc', 'head' or 'pair'"
+    ):
         CircuitSpec("ghz")
-    with pytest.raises(ParameterError, match="only with 'circuit vqc' or 'circuit pair'"):
+    with pytest.raises(
+        ParameterError, match="only with 'circuit vqc' or 'circuit head' or 'circuit pair'"
+    ):
         CircuitSpec("uu", theta_c="1", theta_x="1", x="1,2")

@@ -31,7 +31,11 @@ def test_the_paper_methods_and_baselines_are_registered_once() -> None:
     assert lanes == tuple(f"{g}-{k}" for k in ("uu", "vqc") for g in GROUPINGS)
     assert {get_method(m).kind for m in lanes} == {"uu", "vqc"}
     assert all(get_method(m).quantum for m in lanes)
-    assert method_names(inputs="frames")[:2] == ("dnn-pilotnet", "dnn-resnet50")
+    frames = method_names(inputs="frames")
+    assert frames[0] == "dnn-pilotnet" and frames[-1] == "dnn-resnet50"
+    assert set(frames[1:-1]) == {
+        f"qdcnn-{k}{t}" for k in ("head", "uuconv", "quanv") for t in ("", "-classical")
+    }
     assert get_method("dnn-resnet50").needs_gpu and get_method("dnn-pilotnet").needs_torch
 
 

@@ -145,7 +145,8 @@ def test_headers_that_lie(saved: Path, tmp_path: Path) -> None:
     assert load_error(path) == f"{path}: header in_channels 9 but context 1 (3 per frame)"
     path = rewrite(saved, tmp_path / "arch.safetensors", meta={"architecture": "vgg"})
     assert load_error(path) == (
-        f"{path}: architecture 'vgg' is not a known network ('pilotnet', 'resnet50')"
+        f"{path}: architecture 'vgg' is not a known network ('pilotnet', 'resnet50', "
+        "'qdcnn-head', 'qdcnn-uuconv', 'qdcnn-quanv')"
     )
     path = rewrite(saved, tmp_path / "params.safetensors", meta={"architecture": "resnet50"})
     assert (

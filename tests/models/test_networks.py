@@ -29,14 +29,18 @@ from qdcnn.models.preprocess import PILOTNET_INPUT, normalise  # noqa: E402
 from qdcnn.models.specs import InputSpec  # noqa: E402
 
 
-def test_registry_holds_the_two_baselines() -> None:
-    assert ARCHS == ("pilotnet", "resnet50") == tuple(NETWORKS)
+def test_registry_holds_the_baselines_and_the_hybrids() -> None:
+    hybrids = ("qdcnn-head", "qdcnn-uuconv", "qdcnn-quanv")
+    assert ARCHS == ("pilotnet", "resnet50", *hybrids) == tuple(NETWORKS)
     assert network_entry("pilotnet").input_spec == PILOTNET_INPUT
     assert network_entry("resnet50").weights_skip == ("fc.",)
     assert input_spec("pilotnet", (0.5, 1)).crop == (0.5, 1.0)
     with pytest.raises(ParameterError) as err:
         network_entry("vgg")
-    assert str(err.value) == "arch='vgg' is invalid: one of 'pilotnet', 'resnet50'"
+    assert str(err.value) == (
+        "arch='vgg' is invalid: one of 'pilotnet', 'resnet50', 'qdcnn-head', 'qdcnn-uuconv', "
+        "'qdcnn-quanv'"
+    )
     with pytest.raises(ParameterError) as err:
         build_network("pilotnet", in_channels=0)
     assert str(err.value) == "in_channels=0 is invalid: an integer in [1, 3072]"

@@ -255,3 +255,14 @@ def test_quanvolution_equals_the_simulator_and_pennylane() -> None:
     np.testing.assert_allclose(out[1, 0:4, 1, 2].detach().numpy(), np.array(pl), atol=1e-12)
     with pytest.raises(ParameterError, match="is invalid"):
         layer(torch.rand(1, 3, 4, 4))
+
+
+def test_training_after_a_prediction_in_the_same_process() -> None:
+    """Constants the simulator caches during a prediction (inference mode) can be trained with."""
+    head = QuantumHead(5, n_qubits=3, n_layers=2, noise=NoiseSpec("depolarizing", 0.1))
+    with torch.inference_mode():
+        head(torch.randn(4, 5))
+    fresh = QuantumHead(5, n_qubits=3, n_layers=2, noise=NoiseSpec("depolarizing", 0.1))
+    loss = fresh(torch.randn(4, 5)).sum()
+    loss.backward()
+    assert fresh.weights.grad is not None and torch.isfinite(fresh.weights.grad).all()

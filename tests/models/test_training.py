@@ -279,7 +279,11 @@ def fit_error(**params: object) -> str:
 
 
 def test_parameter_errors_are_raised_by_fit() -> None:
-    assert fit_error(arch="vgg") == "arch='vgg' is invalid: one of 'pilotnet', 'resnet50'"
+    assert (
+        fit_error(arch="vgg")
+        == "arch='vgg' is invalid: one of 'pilotnet', 'resnet50', 'qdcnn-head', 'qdcnn-uuconv', "
+        "'qdcnn-quanv'"
+    )
     assert fit_error(val_fraction=1.5) == (
         "val_fraction=1.5 is invalid: a finite number in [0, 0.9]"
     )

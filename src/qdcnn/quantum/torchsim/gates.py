@@ -11,13 +11,14 @@ made only of them is simulated in real arithmetic.
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import lru_cache
 
 from qdcnn._optional import require
 from qdcnn.quantum import gates as np_gates
 
 require("torch", "the PyTorch quantum simulator")
 import torch  # noqa: E402
+
+from qdcnn.quantum.torchsim._constants import cached_constant  # noqa: E402
 
 REAL_GATES = frozenset({"ry", "h", "x", "z"})
 
@@ -62,7 +63,7 @@ def _phase(a: torch.Tensor) -> torch.Tensor:
     return torch.complex(_square([one, zero, zero, c]), _square([zero, zero, zero, s]))
 
 
-@lru_cache(maxsize=16)
+@cached_constant(16)
 def _rot_tables(dtype: torch.dtype, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
     halves = torch.tensor(_ROT_HALVES, dtype=dtype, device=device)
     # entries as signed products: re = (c ca, -s cb, s cb, c ca), im = (-c sa, -s sb, -s sb, c sa)
@@ -90,7 +91,7 @@ def _gather(t: torch.Tensor, index: tuple[int, ...]) -> torch.Tensor:
     return t.index_select(-1, _index(index, t.device))
 
 
-@lru_cache(maxsize=16)
+@cached_constant(16)
 def _index(index: tuple[int, ...], device: torch.device) -> torch.Tensor:
     return torch.tensor(index, dtype=torch.long, device=device)
 

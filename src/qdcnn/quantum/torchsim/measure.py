@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -12,6 +10,8 @@ from qdcnn.quantum.sampling import check_shots, sample_probabilities
 
 require("torch", "the PyTorch quantum simulator")
 import torch  # noqa: E402
+
+from qdcnn.quantum.torchsim._constants import cached_constant  # noqa: E402
 
 
 def state_probabilities(psi: torch.Tensor) -> torch.Tensor:
@@ -34,7 +34,7 @@ def z_signs(num_qubits: int, like: torch.Tensor) -> torch.Tensor:
     return _z_signs(num_qubits, like.dtype, like.device)
 
 
-@lru_cache(maxsize=64)
+@cached_constant(64)
 def _z_signs(num_qubits: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     idx = np.arange(2**num_qubits)[:, None]
     signs = 1.0 - 2.0 * ((idx >> np.arange(num_qubits)[None, :]) & 1)

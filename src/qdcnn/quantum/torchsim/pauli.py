@@ -30,6 +30,8 @@ from qdcnn.quantum import gates as np_gates
 require("torch", "the PyTorch quantum simulator")
 import torch  # noqa: E402
 
+from qdcnn.quantum.torchsim._constants import cached_constant  # noqa: E402
+
 PAULIS = np.stack([np_gates.I2, np_gates.X, np_gates.Y, np_gates.Z]).astype(np.complex128)
 #: Bloch vector of |0><0|: c = (Tr rho, <X>, <Y>, <Z>) = (1, 0, 0, 1)
 ZERO_STATE = (1.0, 0.0, 0.0, 1.0)
@@ -116,7 +118,7 @@ def walsh(n: int) -> NDArray[np.float64]:
 # ---- torch, at run time ----------------------------------------------------------------
 
 
-@lru_cache(maxsize=32)
+@cached_constant(32)
 def _basis_change(dtype: torch.dtype, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
     """``T`` (row-major ``vec(rho)`` -> ``c``) and its inverse, for one qubit."""
     t = np.stack([p.T.ravel() for p in PAULIS])  # T[a, 2i + j] = sigma_a[j, i]

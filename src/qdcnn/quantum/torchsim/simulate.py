@@ -16,7 +16,6 @@ together with its noise, signed permutations for ``cx`` and ``cz``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -37,6 +36,8 @@ from qdcnn.quantum.torchsim.program import Block, Channels, Monomial, Program, c
 
 require("torch", "the PyTorch quantum simulator")
 import torch  # noqa: E402
+
+from qdcnn.quantum.torchsim._constants import cached_constant, make_constant  # noqa: E402
 
 #: Largest register whose batch-free gate runs are multiplied into one unitary.
 FUSE_UNITARY_MAX_QUBITS = 6
@@ -234,14 +235,16 @@ class TorchCircuit:
     def _index(self, key: Any, values: Any, device: torch.device) -> torch.Tensor:
         full_key = (key, device)
         if full_key not in self._consts:
-            self._consts[full_key] = torch.as_tensor(np.asarray(values), device=device)
+            self._consts[full_key] = make_constant(
+                lambda: torch.as_tensor(np.asarray(values), device=device)
+            )
         out: torch.Tensor = self._consts[full_key]
         return out
 
     def _const(self, key: Any, make: Any, ref: torch.Tensor) -> Any:
         full_key = (key, ref.dtype, ref.device)
         if full_key not in self._consts:
-            self._consts[full_key] = make()
+            self._consts[full_key] = make_constant(make)
         return self._consts[full_key]
 
     def _round(self, rp: _RoundPlan, mats: list[torch.Tensor]) -> torch.Tensor:
@@ -548,13 +551,13 @@ def _product_update(
         product[q] = _mv(m, product.get(q, zero))
 
 
-@lru_cache(maxsize=16)
+@cached_constant(16)
 def _zero_bloch(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     """The Bloch column ``(4, 1)`` of ``|0><0|``."""
     return torch.tensor(pauli.ZERO_STATE, dtype=dtype, device=device)[:, None]
 
 
-@lru_cache(maxsize=64)
+@cached_constant(64)
 def _basis0(size: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     """``(1, size)`` with a one in the first place: ``|0>``, or ``vec(|0><0|)``."""
     out = torch.zeros(1, size, dtype=dtype, device=device)
