@@ -18,8 +18,6 @@ from qdcnn.vision.grouping import (
     METHODS,
     NEAR_PART,
     NEAR_ROW,
-    extract_features_batch,
-    extract_lane_features,
     feature_names,
     fit_line,
     group_segments,
@@ -48,6 +46,11 @@ def road(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
     return img
 
 
+def lane_features(image: np.ndarray, config: LaneConfig, method: str = "image-split", **kw):
+    """Hough segments of ``image`` grouped: the lane stage of ``process_frame``."""
+    return group_segments(detect_segments(image, config), image.shape, method, **kw)
+
+
 def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
     return np.array([(x1 - x2) / (y1 - y2) for x1, y1, x2, y2 in lines])
 
@@ -56,7 +59,7 @@ def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
 @pytest.mark.parametrize("pair", PAIRS)
 def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
-    result = extract_lane_features(road(lines), UDACITY, method)
+    result = lane_features(road(lines), UDACITY, method)
     assert result.status == "ok"
     assert result.features.shape == (2,)
     np.testing.assert_allclose(result.features, drawn_slopes(lines), rtol=0.03, atol=0.03)
@@ -65,7 +68,7 @@ def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
 
 
 def test_slope_signs_on_a_straight_road() -> None:
-    left, right = extract_lane_features(road(PAIRS["straight"]), UDACITY).features
+    left, right = lane_features(road(PAIRS["straight"]), UDACITY).features
     assert left < 0 < right  # dx/dy with y pointing down
 
 
@@ -117,7 +120,7 @@ def test_no_segments_gives_no_lines(method: str) -> None:
 
 @pytest.mark.parametrize("method", METHODS)
 def test_blank_frame_gives_no_lines(method: str) -> None:
-    result = extract_lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
+    result = lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
     assert result.status == "no-lines"
 
 
@@ -125,7 +128,7 @@ def test_blank_frame_gives_no_lines(method: str) -> None:
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) -> None:
     line = PAIRS["straight"][0 if side == "left" else 1]
-    result = extract_lane_features(road([line]), UDACITY, method)
+    result = lane_features(road([line]), UDACITY, method)
     assert result.status == "one-line"
     slot = 0 if side == "left" else 1
     np.testing.assert_allclose(result.features[slot], drawn_slopes([line])[0], atol=0.03)
@@ -136,7 +139,7 @@ def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) ->
 @pytest.mark.parametrize("method", ["kmeans", "spectral"])
 def test_without_merging_clustering_always_gives_two_slopes(method: str) -> None:
     line = PAIRS["straight"][0]
-    result = extract_lane_features(road([line]), UDACITY, method, merge_tolerance=None)
+    result = lane_features(road([line]), UDACITY, method, merge_tolerance=None)
     assert result.status == "ok"  # the stripe's pieces, split in two clusters
     np.testing.assert_allclose(result.features, drawn_slopes([line, line]), atol=0.2)
 
@@ -320,7 +323,7 @@ def drawn_crossing(lines: list[tuple[int, int, int, int]]) -> float:
 def test_new_extras_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
     extras = ("far-offsets", "road-centre", "near-vanishing-point-offset")
-    result = extract_lane_features(road(lines), UDACITY, method, extra_features=extras)
+    result = lane_features(road(lines), UDACITY, method, extra_features=extras)
     far = [drawn_x(line, FAR_ROW) for line in lines]
     near = [drawn_x(line, NEAR_ROW) for line in lines]
     expected = [rel(far[0]), rel(far[1]), rel(sum(far) / 2), rel(sum(near) / 2)]
@@ -341,20 +344,6 @@ def test_feature_modes_name_columns_of_their_extras() -> None:
         assert set(extras) <= set(cfg.extra_features)
     assert mode_columns("slopes") == (0, 1)
     assert mode_columns("far-offsets", ("angles", "far-offsets")) == (4, 5)
-
-
-def test_batch_stacks_rows_and_statuses() -> None:
-    blank = np.full((H, W, 3), 90, np.uint8)
-    images = [road(PAIRS["straight"]), blank, road(PAIRS["straight"][:1])]
-    features, statuses = extract_features_batch(
-        iter(images), UDACITY, "kmeans", extra_features=("angles",)
-    )
-    assert features.shape == (3, 4)
-    assert statuses == ["ok", "no-lines", "one-line"]
-    single = extract_lane_features(images[0], UDACITY, "kmeans", extra_features=("angles",))
-    np.testing.assert_array_equal(features[0], single.features)
-    empty, none = extract_features_batch([], UDACITY, extra_features=("intercepts",))
-    assert empty.shape == (0, 4) and none == []
 
 
 def test_middle_line_is_the_average_of_the_two_lines() -> None:
@@ -380,8 +369,6 @@ def test_unknown_method_or_extra_raises_parameter_error() -> None:
         mode_columns("far-offsets")
     with pytest.raises(ParameterError, match=r"^extra_features='angles' is invalid"):
         group_segments(seg, SHAPE, extra_features="angles")
-    with pytest.raises(ParameterError, match=r"^method='Kmeans' is invalid"):
-        extract_features_batch([], method="Kmeans")
     with pytest.raises(ParameterError, match=r"^grouping.method='knn' is invalid"):
         GroupingConfig(method="knn")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match=r"^merge_tolerance=2.0 is invalid"):
@@ -410,7 +397,9 @@ def test_real_frames_extract_without_error(
     images = [read_image(p) for p in paths]
     assert len(images) == 50
     for method in METHODS:
-        features, statuses = extract_features_batch(images, UDACITY, method)
+        results = [lane_features(image, UDACITY, method) for image in images]
+        features = np.vstack([r.features for r in results])
+        statuses = [r.status for r in results]
         assert features.shape == (50, 2)
         counts = {s: statuses.count(s) for s in ("ok", "one-line", "no-lines")}
         assert sum(counts.values()) == 50
