@@ -12,6 +12,15 @@ Three things, each a part (``--parts``):
     with two fitted lines, the mean horizontal distance (pixels, and fraction of the width)
     between each fitted line and the true marking of its side over the rows the marking is
     visible in the ROI's lower half, per lane-evidence mode.
+``overlays``
+    ``docs/lanes-real-before-after.jpg`` and ``docs/lanes-synthetic-dashcam.jpg``: frames of
+    the real sample (and of a synthetic dashcam drive) with the lane overlay of today's
+    ``udacity`` settings (before), of ``auto`` (the paper's evidence in the estimated ROI)
+    and of ``auto-marks-filter-inner`` (after), each 320x240, with the camera drawn.
+``ceiling``
+    A bound that does not depend on the lane stage: HOG features of the grey lower part of
+    each frame (below 42 % of the height, resized to 128x56, 8 orientations, 8x8 cells)
+    with an L2 logistic regression (C = 0.01), on the same folds and labels.
 ``direction``
     Direction accuracy of the six quantum methods (5 contiguous folds, gap 5, inner CV, as
     :func:`qdcnn.experiments.evaluate.evaluate_features`) per dataset and mode, with the
@@ -363,6 +372,77 @@ def lines_part(n: int, size: tuple[int, int], modes: list[str]) -> dict[str, Any
     return out
 
 
+def overlay_grid(
+    frames: FrameSet, indices: list[int], modes: list[str], labels: NDArray[np.int64] | None
+) -> NDArray[np.uint8]:
+    """Rows: frames; columns: modes; each tile the lane overlay at 320x240."""
+    from qdcnn.data.labels import DIRECTIONS
+    from qdcnn.pipeline import process_frame
+    from qdcnn.vision.overlays import draw_lane_overlay
+
+    configs = [mode_config(mode, frames, "slopes") for mode in modes]
+    rows = []
+    for i in indices:
+        image = frames.image(i)
+        tiles = []
+        for mode, (cfg, camera) in zip(modes, configs, strict=True):
+            result = process_frame(image, cfg, ("image-split",), rng=0)
+            truth = None if labels is None else f"{mode}: label {DIRECTIONS[labels[i]]}"
+            tile = draw_lane_overlay(
+                image,
+                result.segments,
+                result.lanes["image-split"],
+                truth,
+                roi=cfg.lanes.roi,
+                camera=camera,
+            )
+            tiles.append(cv2.resize(tile, (320, 240), interpolation=cv2.INTER_AREA))
+        rows.append(np.hstack(tiles))
+    return np.vstack(rows)
+
+
+def overlays_part(out: Path, n_synth: int) -> None:
+    modes = ["udacity", "auto", "auto-marks-filter-inner"]
+    out.mkdir(parents=True, exist_ok=True)
+    real = load("real", n_synth)
+    grid = overlay_grid(real, [0, 250, 540, 870], modes, real.labels(LABELS))
+    quality = [cv2.IMWRITE_JPEG_QUALITY, 85]
+    path = out / "lanes-real-before-after.jpg"
+    cv2.imwrite(str(path), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR), quality)
+    synth = load("synth", n_synth)
+    grid = overlay_grid(synth, [40, 200, 400], modes, synth.labels(LABELS))
+    path = out / "lanes-synthetic-dashcam.jpg"
+    cv2.imwrite(str(path), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR), quality)
+    print("overlays written to", out, flush=True)
+
+
+def ceiling_part(datasets: list[str], n_synth: int) -> dict[str, Any]:
+    from skimage.feature import hog
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    out = {}
+    for name in datasets:
+        frames = load(name, n_synth)
+        y = frames.labels(LABELS)
+        rows = []
+        for i in range(len(frames)):
+            grey = cv2.cvtColor(frames.image(i), cv2.COLOR_RGB2GRAY)
+            lower = grey[int(0.42 * grey.shape[0]) :]
+            small = cv2.resize(lower, (128, 56), interpolation=cv2.INTER_AREA)
+            rows.append(hog(small, orientations=8, pixels_per_cell=(8, 8), cells_per_block=(1, 1)))
+        H = np.asarray(rows)
+        accs = []
+        for train, test in contiguous_folds(len(y), FOLDS, GAP):
+            model = make_pipeline(StandardScaler(), LogisticRegression(C=0.01, max_iter=3000))
+            model.fit(H[train], y[train])
+            accs.append(float(np.mean(model.predict(H[test]) == y[test])))
+        out[name] = {"hog_logistic": float(np.mean(accs)), "folds": accs}
+        print("ceiling", name, json.dumps(out[name]), flush=True)
+    return out
+
+
 def markdown(rows: list[dict[str, Any]], methods: list[str]) -> str:
     head = ["dataset", "mode", "features", *methods, "majority", "LR (classical)", "two lines"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -386,6 +466,7 @@ def main() -> None:
     parser.add_argument("--drive-frames", type=int, default=30)
     parser.add_argument("--size", default="320x240", help="frame size of the camera part")
     parser.add_argument("--json", default="lane_study.json")
+    parser.add_argument("--docs", default=str(Path(__file__).resolve().parents[1] / "docs"))
     args = parser.parse_args()
     size = tuple(int(v) for v in args.size.split("x"))
     assert len(size) == 2
@@ -399,6 +480,10 @@ def main() -> None:
         ]
     if "lines" in parts:
         results["lines"] = lines_part(60, (640, 480), [m for m in modes if m != "udacity"])
+    if "ceiling" in parts:
+        results["ceiling"] = ceiling_part(args.data.split(","), args.synth_frames)
+    if "overlays" in parts:
+        overlays_part(Path(args.docs), args.synth_frames)
     if "direction" in parts:
         methods = args.methods.split(",")
         rows = direction_part(

@@ -15,6 +15,7 @@ from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.grouping import (
     EXTRA_FEATURES,
     FAR_ROW,
+    LEFT_OUT,
     METHODS,
     NEAR_PART,
     NEAR_ROW,
@@ -410,3 +411,33 @@ def test_real_frames_extract_without_error(
         assert np.isnan(features[np.array(statuses) == "no-lines"]).all()
         # the road edges are visible in most frames (measured: 72-98 % "ok")
         assert counts["ok"] >= 25
+
+
+def test_inner_lines_keep_each_sides_own_lane_border() -> None:
+    # left side: the car's lane border and, further out, the other lane's far border;
+    # right side: the lane border and a kerb beyond it
+    inner_left, outer_left = (110, 72, 40, 159), (70, 72, -60, 159)
+    inner_right, kerb = (210, 72, 280, 159), (250, 72, 380, 159)
+    segments = np.array([inner_left, outer_left, inner_right, kerb], dtype=np.float64)
+    segments = np.vstack([segments, np.add(segments, [1, 0, 1, 0])])  # each line seen twice
+    plain = group_segments(segments, SHAPE, "image-split")
+    inner = group_segments(segments, SHAPE, "image-split", inner_lines=True)
+    wanted = drawn_slopes([inner_left[2:] + inner_left[:2], inner_right[2:] + inner_right[:2]])
+    np.testing.assert_allclose(inner.features, wanted, atol=0.02)
+    assert not np.allclose(plain.features, wanted, atol=0.05)
+    assert set(inner.labels.tolist()) == {0, 1, LEFT_OUT}
+    assert (inner.labels[[1, 3, 5, 7]] == LEFT_OUT).all()
+    # a car's outline on the right leaning down-left is no right border, however inner
+    car = np.array([[200.0, 120, 170, 150]])
+    with_car = group_segments(np.vstack([segments, car]), SHAPE, "image-split", inner_lines=True)
+    assert with_car.labels[-1] == LEFT_OUT
+    np.testing.assert_allclose(with_car.features, wanted, atol=0.02)
+
+
+def test_inner_lines_keep_a_double_centre_line_as_one_line() -> None:
+    # two stripes 4 px apart are one marking; a faint short segment inside is not a line
+    a, b = (120, 72, 40, 159), (124, 72, 44, 159)
+    stub = (140, 150, 136, 159)
+    segments = np.array([a, b, stub, (210, 72, 280, 159)], dtype=np.float64)
+    result = group_segments(segments, SHAPE, "image-split", inner_lines=True)
+    assert result.labels.tolist() == [0, 0, LEFT_OUT, 1]

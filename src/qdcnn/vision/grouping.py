@@ -111,6 +111,8 @@ LEFT_OUT = 2
 INNER_BAND, INNER_SHARE = 0.04, 0.2
 #: inner_lines: the reference row (relative), near the bottom where lines are far apart
 INNER_ROW = 0.9
+#: inner_lines: largest dx/dy of a border leaning the wrong way for its side
+INNER_LEAN = 0.1
 
 
 @dataclass
@@ -359,12 +361,15 @@ def _inner_line_labels(
 ) -> NDArray[np.int64]:
     """Labels with every segment but those of each side's innermost line set to LEFT_OUT.
 
-    Per side, each segment's line ``x = a y + b`` is read at the row :data:`INNER_ROW` of
-    the height; sorted by that crossing, segments closer than :data:`INNER_BAND` of the
-    width to their neighbour form one line. The side keeps the line nearest the frame's
-    centre among those holding at least :data:`INNER_SHARE` of the side's segment length
-    (the own lane's border: a double centre line is one line, the far border of the
-    other lane, a kerb or a parked car's outline another).
+    A side's border runs down and outwards (left: ``dx/dy < 0``, right: ``dx/dy > 0``, up
+    to :data:`INNER_LEAN` the other way), so segments leaning the other way (car and
+    shadow outlines) are left out first. Per side, each remaining segment's line
+    ``x = a y + b`` is read at the row :data:`INNER_ROW` of the height; sorted by that
+    crossing, segments closer than :data:`INNER_BAND` of the width to their neighbour form
+    one line. The side keeps the line nearest the frame's centre among those holding at
+    least :data:`INNER_SHARE` of the side's segment length (the own lane's border: a double
+    centre line is one line, the far border of the other lane, a kerb or a parked car's
+    outline another).
     """
     out = labels.copy()
     if len(segments) == 0:
@@ -375,7 +380,9 @@ def _inner_line_labels(
     cross = np.where(dy > 1e-9, cross, 0.5 * (segments[:, 0] + segments[:, 2]))
     length = np.hypot(segments[:, 2] - segments[:, 0], dy)
     for side in (0, 1):
-        idx = np.flatnonzero(labels == side)
+        leaning = a < INNER_LEAN if side == 0 else a > -INNER_LEAN
+        out[(labels == side) & ~leaning] = LEFT_OUT
+        idx = np.flatnonzero((labels == side) & leaning)
         if idx.size < 2:
             continue
         # innermost first: the left side from the right, the right side from the left

@@ -10,7 +10,7 @@ recognised as a jump. :class:`LaneTracker` keeps, per side, the line's x at two 
     An exponential moving average, ``state += alpha * (measured - state)``.
 ``"kalman"``
     A constant-velocity Kalman filter per side on the two x values (state: positions and
-    velocities; process noise a random acceleration of ``1 %`` of the width per frame,
+    velocities; process noise a random acceleration of ``0.3 %`` of the width per frame,
     measurement noise ``2 %`` of the width).
 
 A measurement more than :data:`GATE` of the width from the track at either row (``ema``)
@@ -43,7 +43,7 @@ TRACK_ROWS = (0.5, 0.95)
 #: an "ema" measurement this far (fraction of the width) from the track is an outlier
 GATE = 0.15
 #: "kalman": random acceleration and measurement noise, as fractions of the width
-KALMAN_Q, KALMAN_R = 0.01, 0.02
+KALMAN_Q, KALMAN_R = 0.003, 0.02
 #: "kalman": squared Mahalanobis distance beyond which a measurement is rejected (chi2, 2 dof)
 KALMAN_GATE = 13.8
 
