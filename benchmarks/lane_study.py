@@ -42,8 +42,10 @@ Modes (``--modes``): ``udacity`` (today's ``--lanes udacity``: the fixed Udacity
 the ROI estimated per recording: UU-dagger shadow removal, grey Canny, the two slopes),
 and named options on top of ``auto``: ``auto-marks`` (white/yellow marks in Lab, no shadow
 removal), ``auto-marks-filter`` (+ segments 20-80 degrees and pointing at the vanishing
-point within 30 % of the width), ``auto-marks-filter-track`` (+ EMA tracking), each with
-the feature mode ``--features`` (default: the paper's slopes; ``road-centre`` etc.).
+point within 30 % of the width), ``-inner`` (+ innermost lines), ``-track`` (+ EMA
+tracking), ``auto-min10`` (the paper's evidence without segments flatter than 10 degrees),
+each with the feature mode ``--features`` (default: the paper's slopes; ``road-centre``
+etc.). ``--eval-seed`` changes the classifiers' seed (VQC starting points), not the lanes.
 
 Usage::
 
@@ -159,6 +161,8 @@ def mode_config(
         lanes = replace(lanes, marks="lab", remove_shadows=False)
     if "filter" in mode:
         lanes = replace(lanes, min_segment_angle=20.0, max_segment_angle=80.0, vp_tolerance=0.3)
+    if "min10" in mode:
+        lanes = replace(lanes, min_segment_angle=10.0)
     if "inner" in mode:
         grouping = replace(grouping, inner_lines=True)
     if "track" in mode:
@@ -223,7 +227,12 @@ def logistic_reference(X: NDArray[np.float64], y: NDArray[np.int64]) -> float:
 
 
 def direction_part(
-    datasets: list[str], modes: list[str], features: list[str], methods: list[str], n_synth: int
+    datasets: list[str],
+    modes: list[str],
+    features: list[str],
+    methods: list[str],
+    n_synth: int,
+    eval_seed: int = 0,
 ) -> list[dict[str, Any]]:
     rows = []
     for name in datasets:
@@ -262,7 +271,7 @@ def direction_part(
                         name,
                         X,
                         y,
-                        config=cfg,
+                        config=replace(cfg, seed=eval_seed),
                         folds=FOLDS,
                         gap=GAP,
                         frames_without_lines=int(np.sum(table[f"status/{grouping}"] != "ok")),
@@ -462,6 +471,9 @@ def main() -> None:
     parser.add_argument("--features", default="slopes")
     parser.add_argument("--methods", default=",".join(QUANTUM_METHODS))
     parser.add_argument("--synth-frames", type=int, default=600)
+    parser.add_argument(
+        "--eval-seed", type=int, default=0, help="seed of the classifiers (not of the lanes)"
+    )
     parser.add_argument("--drives", type=int, default=40)
     parser.add_argument("--drive-frames", type=int, default=30)
     parser.add_argument("--size", default="320x240", help="frame size of the camera part")
@@ -487,7 +499,12 @@ def main() -> None:
     if "direction" in parts:
         methods = args.methods.split(",")
         rows = direction_part(
-            args.data.split(","), modes, args.features.split(","), methods, args.synth_frames
+            args.data.split(","),
+            modes,
+            args.features.split(","),
+            methods,
+            args.synth_frames,
+            args.eval_seed,
         )
         results["direction"] = rows
         print()
