@@ -142,6 +142,41 @@ class LaneConfig:
         Hough segments less steep than this many degrees from the horizontal are dropped
         (0, the paper: keep all). Near-horizontal segments come from kerb tops, shadows
         and the horizon rather than from the lane borders.
+    max_segment_angle : float
+        Hough segments steeper than this many degrees from the horizontal are dropped
+        (90, the paper: keep all; not the paper's). Near-vertical segments come from poles,
+        tree trunks and car sides; lane borders seen from a car are rarely steeper than 80.
+    work_width : int or None
+        Frame width, in pixels, at which smoothing, Canny and Hough run (not the paper's).
+        ``None`` (the paper) works on the frame as given, so the pixel settings (apertures,
+        Hough lengths and gaps, smoothing margin) mean different things at 320x160 and at
+        1280x720. With a width set, every frame is resized to it first (aspect kept; OpenCV
+        area interpolation when shrinking) and the segments are scaled back to the frame's
+        pixels, so the pixel settings are relative to the frame size and one setting serves
+        every size; the blur of the smoothing passes scales with them.
+    marks : {"none", "hls", "lab"}
+        Lane-mark evidence (not the paper's). ``"none"`` (the paper): Canny of the grey (or
+        colour) frame. ``"hls"`` / ``"lab"``: Canny of a mask of white and yellow markings
+        selected in that OpenCV colour space, so markings give edges and vegetation, kerbs
+        and shadows mostly do not (:func:`qdcnn.vision.marks.marking_mask`).
+    marks_contrast : float
+        How much lighter than the road beside it a white marking must be, as a ratio: its
+        lightness above the horizontal opening (a top-hat) by this fraction of the
+        opening's value (and by 4 grey levels at least); 0.4 is above the grain of
+        asphalt (10 % of its pixels are 12 % lighter than their surroundings on the real
+        sample at 320 px, 35 % on the synthetic asphalt) and below paint (about 100 %).
+    marks_width : float
+        Widest marking, as a fraction of the working width: the top-hat's window is this
+        wide, and brighter structures wider than it (sky, walls) are not markings.
+    vanishing_point : (x, y) or None
+        Where the lane lines of a straight road meet, relative to the frame (as the ROI);
+        set by :func:`qdcnn.vision.camera.apply_camera` or a preset. Used only by
+        ``vp_tolerance``.
+    vp_tolerance : float or None
+        Position filter (not the paper's): a segment is kept only when it lies below the
+        vanishing point's row and its line crosses that row within this fraction of the
+        width of the vanishing point (a lane border points at it; tree and car outlines
+        mostly do not). ``None`` (the paper) keeps every segment.
     """
 
     ROI_PRESETS: ClassVar[dict[str, tuple[tuple[float, float], ...]]] = {
@@ -165,7 +200,19 @@ class LaneConfig:
             (380 / 639, 380 / 479),
             (1.0, 1.0),
         ),
+        # qdcnn.vision.camera.camera_roi(horizon 0.40, vanishing point x 0.5, no hood) at
+        # 640x480: a trapezoid narrowing towards the vanishing point, no hood notch
+        "dashcam": (
+            (0.0, 1.0),
+            (0.0, 0.586764),
+            (0.275039, 0.44),
+            (0.724961, 0.44),
+            (1.0, 0.586764),
+            (1.0, 1.0),
+        ),
     }
+    #: ``marks`` choices: no colour evidence (the paper), or markings selected in HLS / Lab
+    MARKS: ClassVar[tuple[str, ...]] = ("none", "hls", "lab")
 
     remove_shadows: bool = True
     median_ksize: int = 5
@@ -183,6 +230,13 @@ class LaneConfig:
     hough_max_line_gap: int = 25
     edge_channels: Literal["grey", "rgb"] = "grey"
     min_segment_angle: float = 0.0
+    max_segment_angle: float = 90.0
+    work_width: int | None = None
+    marks: Literal["none", "hls", "lab"] = "none"
+    marks_contrast: float = 0.4
+    marks_width: float = 0.05
+    vanishing_point: tuple[float, float] | None = None
+    vp_tolerance: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("median_ksize", "blur_ksize"):
@@ -221,6 +275,39 @@ class LaneConfig:
         if self.edge_channels not in ("grey", "rgb"):
             raise ParameterError("lanes.edge_channels", self.edge_channels, "'grey' or 'rgb'")
         _check_range("lanes.min_segment_angle", self.min_segment_angle, 0.0, 90.0)
+        _check_range("lanes.max_segment_angle", self.max_segment_angle, 0.0, 90.0)
+        if self.max_segment_angle < self.min_segment_angle:
+            raise ParameterError(
+                "lanes.max_segment_angle",
+                self.max_segment_angle,
+                f"at least min_segment_angle={self.min_segment_angle}",
+            )
+        if self.work_width is not None:
+            _check_int("lanes.work_width", self.work_width, 16, 8192)
+        if self.marks not in self.MARKS:
+            raise ParameterError("lanes.marks", self.marks, "'none', 'hls' or 'lab'")
+        _check_range("lanes.marks_contrast", self.marks_contrast, 0.0, 10.0)
+        _check_range("lanes.marks_width", self.marks_width, 0.002, 0.5)
+        if self.vanishing_point is not None:
+            vp = self.vanishing_point
+            ok = isinstance(vp, tuple | list) and len(vp) == 2
+            if ok:
+                try:
+                    ok = all(math.isfinite(float(v)) and -1.0 <= float(v) <= 2.0 for v in vp)
+                except (TypeError, ValueError):
+                    ok = False
+            if not ok:
+                raise ParameterError(
+                    "lanes.vanishing_point", vp, "None or (x, y) relative to the frame size"
+                )
+        if self.vp_tolerance is not None:
+            _check_range("lanes.vp_tolerance", self.vp_tolerance, 0.0, 10.0)
+            if self.vanishing_point is None:
+                raise ParameterError(
+                    "lanes.vp_tolerance",
+                    self.vp_tolerance,
+                    "None unless vanishing_point is set (a preset or apply_camera sets it)",
+                )
 
     @classmethod
     def udacity(cls, **changes: Any) -> LaneConfig:
@@ -230,6 +317,53 @@ class LaneConfig:
         frames (2 iterations: 71-74 %, 30: none); ``changes`` override any field.
         """
         return cls(**{"smoothing_iterations": 1, **changes})
+
+    @classmethod
+    def paper(cls, **changes: Any) -> LaneConfig:
+        """The paper's literal settings (Sec. III-A; NOTES 5).
+
+        Thirty smoothing passes over the whole frame, Canny 50/175, the paper's ROI in the
+        pixels of an assumed 640x480 frame (``"paper-640x480"``), HoughLinesP 1, pi/180, 8,
+        2, 25 in the frame's own pixels; ``changes`` override any field.
+        """
+        base: dict[str, Any] = {
+            "roi": cls.ROI_PRESETS["paper-640x480"],
+            "smoothing_iterations": 30,
+            "smoothing_margin": None,
+        }
+        return cls(**{**base, **changes})
+
+    @classmethod
+    def dashcam(cls, **changes: Any) -> LaneConfig:
+        """Settings for a windscreen camera with no hood in view (not the paper's).
+
+        The ``"dashcam"`` ROI (horizon near 40 % of the height, a trapezoid narrowing
+        towards the vanishing point at the middle column), the paper's Canny and Hough
+        values at a working width of 320 pixels (``work_width``; so they mean at 640x480 or
+        1280x720 what they mean on 320x160 frames), 1 smoothing pass as
+        :meth:`udacity`, and the vanishing point the ROI was drawn for. Colour evidence,
+        segment filters and tracking stay off (named options). :func:`qdcnn.vision.camera.
+        apply_camera` replaces the ROI and vanishing point by those estimated for a
+        recording (``--lanes auto``).
+        """
+        base: dict[str, Any] = {
+            "roi": cls.ROI_PRESETS["dashcam"],
+            "smoothing_iterations": 1,
+            "work_width": 320,
+            "vanishing_point": (0.5, 0.40),
+        }
+        return cls(**{**base, **changes})
+
+    #: named lane presets (``--lanes``); "auto" starts from "dashcam" (vision.camera)
+    PRESETS: ClassVar[tuple[str, ...]] = ("udacity", "paper", "dashcam")
+
+    @classmethod
+    def preset(cls, name: str, **changes: Any) -> LaneConfig:
+        """The lane preset called ``name`` (one of :attr:`PRESETS`), with ``changes``."""
+        if name not in cls.PRESETS:
+            raise ParameterError("lanes", name, "one of " + ", ".join(map(repr, cls.PRESETS)))
+        factory = {"udacity": cls.udacity, "paper": cls.paper, "dashcam": cls.dashcam}[name]
+        return factory(**changes)
 
 
 @dataclass(frozen=True)
@@ -259,6 +393,21 @@ class GroupingConfig:
         two groups (:func:`qdcnn.vision.grouping.group_segments`).
     seed : int
         Seed of k-means and spectral clustering.
+    track : {"none", "ema", "kalman"}
+        Temporal tracking of the two fitted lines across the frames of a recording (not the
+        paper's; :mod:`qdcnn.vision.tracking`). ``"none"`` (the paper): every frame alone.
+        ``"ema"``: each line's x at two rows is an exponential moving average;
+        ``"kalman"``: a constant-velocity Kalman filter on the same two numbers. Either
+        way a line missing in a frame is carried from the last frames for up to
+        ``track_hold`` frames, and the features are computed from the tracked lines.
+    track_alpha : float
+        Weight of the new frame in the moving average (1 = no smoothing).
+    track_hold : int
+        Frames a missing or rejected (too far from the track) line is carried for.
+    inner_lines : bool
+        Fit each side's innermost line only (not the paper's): segments of the other
+        lane's far border, kerbs or parked cars on that side are left out of the fit
+        (:func:`qdcnn.vision.grouping.group_segments`).
     """
 
     #: mode -> (its two column names, the extras that compute them)
@@ -285,6 +434,10 @@ class GroupingConfig:
     extra_features: tuple[str, ...] = ()
     merge_tolerance: float | None = 0.03
     seed: int = 0
+    track: Literal["none", "ema", "kalman"] = "none"
+    track_alpha: float = 0.5
+    track_hold: int = 5
+    inner_lines: bool = False
 
     @classmethod
     def for_features(cls, features: str, **changes: Any) -> GroupingConfig:
@@ -327,6 +480,10 @@ class GroupingConfig:
             )
         if self.merge_tolerance is not None:
             _check_range("grouping.merge_tolerance", self.merge_tolerance, 0.0, 1.0)
+        if self.track not in ("none", "ema", "kalman"):
+            raise ParameterError("grouping.track", self.track, "'none', 'ema' or 'kalman'")
+        _check_range("grouping.track_alpha", self.track_alpha, 0.01, 1.0)
+        _check_int("grouping.track_hold", self.track_hold, 0, 10**4)
 
 
 @dataclass(frozen=True)

@@ -98,7 +98,7 @@ def _lean(line: np.ndarray, height: int) -> float:
     return float(np.polyfit(part[:, 1], part[:, 0], 1)[0])
 
 
-@pytest.mark.parametrize("preset", PRESETS)
+@pytest.mark.parametrize("preset", ["track1", "track2", "rain"])  # the car mid-road
 def test_fitted_lane_line_slopes_tell_the_direction(preset: str) -> None:
     # A bend makes both boundaries lean towards it: the summed dx/dy of the two fitted
     # lines is positive (lines lean left going up) for left bends, near 0 when straight.
@@ -269,7 +269,7 @@ def test_drive_is_deterministic() -> None:
     [
         (
             lambda: generate_scene("track3"),
-            "preset='track3' is invalid: one of track1, track2, rain",
+            "preset='track3' is invalid: one of track1, track2, rain, dashcam",
         ),
         (lambda: generate_scene(width=0), "width=0 is invalid: between 16 and 8192 pixels"),
         (lambda: generate_scene(height=2.5), "height=2.5 is invalid: an integer number of pixels"),
@@ -332,3 +332,56 @@ def test_shadow_mask_is_exactly_where_the_sun_is_blocked(
             assert ratio.mean() < 0.7
             assert ratio[2] > ratio[0]  # blue attenuated least (skylight)
     assert lost_out < 0.25 * lost_in
+
+
+def _near_line(line: np.ndarray, height: int) -> tuple[float, float]:
+    """x = a * y + b fitted to the lowest quarter of a marking's visible points."""
+    part = line[line[:, 1] >= 0.75 * height]
+    a, b = np.polyfit(part[:, 1], part[:, 0], 1)
+    return float(a), float(b)
+
+
+def test_dashcam_camera_truth_matches_its_markings() -> None:
+    # on straight roads the near parts of the two true markings meet at the vanishing point
+    w, h = 640, 480
+    for seed in range(6):
+        s = generate_scene("dashcam", seed=seed, width=w, height=h, direction=STRAIGHT)
+        assert s.image.shape == (h, w, 3) and np.isfinite(s.horizon)
+        assert 0.34 * h <= s.horizon <= 0.52 * h  # mount horizon 36-50 %, pitch +-0.6 %
+        (a1, b1), (a2, b2) = (_near_line(line, h) for line in s.lane_lines)
+        assert a1 < 0 < a2  # the car's lane: centre line left, edge line right
+        y = (b2 - b1) / (a1 - a2)
+        x = a1 * y + b1
+        assert abs(y - s.vanishing_point[1]) < 0.03 * h
+        assert abs(x - s.vanishing_point[0]) < 0.04 * w
+        assert s.vanishing_point[1] == s.horizon
+
+
+def test_dashcam_has_a_double_yellow_centre_line_and_a_white_edge_line() -> None:
+    s = generate_scene("dashcam", seed=2, width=640, height=480, direction=STRAIGHT)
+    lab = cv2.cvtColor(s.image, cv2.COLOR_RGB2LAB).astype(int)
+    for side, line in enumerate(s.lane_lines):
+        low = line[(line[:, 1] > 400) & (line[:, 1] < 470)]
+        assert len(low) > 5
+        yellowness, lightness = [], []
+        for x, y in np.round(low).astype(int):
+            patch = lab[y, max(x - 6, 0) : x + 7]
+            yellowness.append(patch[:, 2].max() - 128)
+            lightness.append(patch[:, 0].max())
+        if side == 0:  # two yellow stripes either side of the centre line
+            assert np.median(yellowness) > 30
+            centre = lab[np.round(low[:, 1]).astype(int), np.round(low[:, 0]).astype(int)]
+            assert np.median(centre[:, 2]) - 128 < np.median(yellowness)  # the gap between
+        else:
+            assert np.median(yellowness) < 15 and np.median(lightness) > 180
+
+
+def test_dashcam_drive_has_its_own_camera_and_no_hood() -> None:
+    drive = generate_drive("dashcam", 12, seed=9, width=320, height=240)
+    horizons = np.array([s.horizon for s in drive]) / 239
+    assert np.ptp(horizons) < 0.02  # one mount per drive, a little pitch
+    other = generate_drive("dashcam", 12, seed=10, width=320, height=240)
+    assert abs(np.median(horizons) - np.median([s.horizon for s in other]) / 239) > 0.005
+    assert STYLES["dashcam"].hood is False and STYLES["dashcam"].size == (640, 480)
+    bottom = np.array([s.image[-8:].astype(float).mean() for s in drive])
+    assert bottom.std() > 0  # the road under the bumper moves: no static hood

@@ -15,11 +15,10 @@ from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.grouping import (
     EXTRA_FEATURES,
     FAR_ROW,
+    LEFT_OUT,
     METHODS,
     NEAR_PART,
     NEAR_ROW,
-    extract_features_batch,
-    extract_lane_features,
     feature_names,
     fit_line,
     group_segments,
@@ -48,6 +47,11 @@ def road(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
     return img
 
 
+def lane_features(image: np.ndarray, config: LaneConfig, method: str = "image-split", **kw):
+    """Hough segments of ``image`` grouped: the lane stage of ``process_frame``."""
+    return group_segments(detect_segments(image, config), image.shape, method, **kw)
+
+
 def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
     return np.array([(x1 - x2) / (y1 - y2) for x1, y1, x2, y2 in lines])
 
@@ -56,7 +60,7 @@ def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
 @pytest.mark.parametrize("pair", PAIRS)
 def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
-    result = extract_lane_features(road(lines), UDACITY, method)
+    result = lane_features(road(lines), UDACITY, method)
     assert result.status == "ok"
     assert result.features.shape == (2,)
     np.testing.assert_allclose(result.features, drawn_slopes(lines), rtol=0.03, atol=0.03)
@@ -65,7 +69,7 @@ def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
 
 
 def test_slope_signs_on_a_straight_road() -> None:
-    left, right = extract_lane_features(road(PAIRS["straight"]), UDACITY).features
+    left, right = lane_features(road(PAIRS["straight"]), UDACITY).features
     assert left < 0 < right  # dx/dy with y pointing down
 
 
@@ -117,7 +121,7 @@ def test_no_segments_gives_no_lines(method: str) -> None:
 
 @pytest.mark.parametrize("method", METHODS)
 def test_blank_frame_gives_no_lines(method: str) -> None:
-    result = extract_lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
+    result = lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
     assert result.status == "no-lines"
 
 
@@ -125,7 +129,7 @@ def test_blank_frame_gives_no_lines(method: str) -> None:
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) -> None:
     line = PAIRS["straight"][0 if side == "left" else 1]
-    result = extract_lane_features(road([line]), UDACITY, method)
+    result = lane_features(road([line]), UDACITY, method)
     assert result.status == "one-line"
     slot = 0 if side == "left" else 1
     np.testing.assert_allclose(result.features[slot], drawn_slopes([line])[0], atol=0.03)
@@ -136,7 +140,7 @@ def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) ->
 @pytest.mark.parametrize("method", ["kmeans", "spectral"])
 def test_without_merging_clustering_always_gives_two_slopes(method: str) -> None:
     line = PAIRS["straight"][0]
-    result = extract_lane_features(road([line]), UDACITY, method, merge_tolerance=None)
+    result = lane_features(road([line]), UDACITY, method, merge_tolerance=None)
     assert result.status == "ok"  # the stripe's pieces, split in two clusters
     np.testing.assert_allclose(result.features, drawn_slopes([line, line]), atol=0.2)
 
@@ -320,7 +324,7 @@ def drawn_crossing(lines: list[tuple[int, int, int, int]]) -> float:
 def test_new_extras_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
     extras = ("far-offsets", "road-centre", "near-vanishing-point-offset")
-    result = extract_lane_features(road(lines), UDACITY, method, extra_features=extras)
+    result = lane_features(road(lines), UDACITY, method, extra_features=extras)
     far = [drawn_x(line, FAR_ROW) for line in lines]
     near = [drawn_x(line, NEAR_ROW) for line in lines]
     expected = [rel(far[0]), rel(far[1]), rel(sum(far) / 2), rel(sum(near) / 2)]
@@ -341,20 +345,6 @@ def test_feature_modes_name_columns_of_their_extras() -> None:
         assert set(extras) <= set(cfg.extra_features)
     assert mode_columns("slopes") == (0, 1)
     assert mode_columns("far-offsets", ("angles", "far-offsets")) == (4, 5)
-
-
-def test_batch_stacks_rows_and_statuses() -> None:
-    blank = np.full((H, W, 3), 90, np.uint8)
-    images = [road(PAIRS["straight"]), blank, road(PAIRS["straight"][:1])]
-    features, statuses = extract_features_batch(
-        iter(images), UDACITY, "kmeans", extra_features=("angles",)
-    )
-    assert features.shape == (3, 4)
-    assert statuses == ["ok", "no-lines", "one-line"]
-    single = extract_lane_features(images[0], UDACITY, "kmeans", extra_features=("angles",))
-    np.testing.assert_array_equal(features[0], single.features)
-    empty, none = extract_features_batch([], UDACITY, extra_features=("intercepts",))
-    assert empty.shape == (0, 4) and none == []
 
 
 def test_middle_line_is_the_average_of_the_two_lines() -> None:
@@ -380,8 +370,6 @@ def test_unknown_method_or_extra_raises_parameter_error() -> None:
         mode_columns("far-offsets")
     with pytest.raises(ParameterError, match=r"^extra_features='angles' is invalid"):
         group_segments(seg, SHAPE, extra_features="angles")
-    with pytest.raises(ParameterError, match=r"^method='Kmeans' is invalid"):
-        extract_features_batch([], method="Kmeans")
     with pytest.raises(ParameterError, match=r"^grouping.method='knn' is invalid"):
         GroupingConfig(method="knn")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match=r"^merge_tolerance=2.0 is invalid"):
@@ -410,7 +398,9 @@ def test_real_frames_extract_without_error(
     images = [read_image(p) for p in paths]
     assert len(images) == 50
     for method in METHODS:
-        features, statuses = extract_features_batch(images, UDACITY, method)
+        results = [lane_features(image, UDACITY, method) for image in images]
+        features = np.vstack([r.features for r in results])
+        statuses = [r.status for r in results]
         assert features.shape == (50, 2)
         counts = {s: statuses.count(s) for s in ("ok", "one-line", "no-lines")}
         assert sum(counts.values()) == 50
@@ -421,3 +411,33 @@ def test_real_frames_extract_without_error(
         assert np.isnan(features[np.array(statuses) == "no-lines"]).all()
         # the road edges are visible in most frames (measured: 72-98 % "ok")
         assert counts["ok"] >= 25
+
+
+def test_inner_lines_keep_each_sides_own_lane_border() -> None:
+    # left side: the car's lane border and, further out, the other lane's far border;
+    # right side: the lane border and a kerb beyond it
+    inner_left, outer_left = (110, 72, 40, 159), (70, 72, -60, 159)
+    inner_right, kerb = (210, 72, 280, 159), (250, 72, 380, 159)
+    segments = np.array([inner_left, outer_left, inner_right, kerb], dtype=np.float64)
+    segments = np.vstack([segments, np.add(segments, [1, 0, 1, 0])])  # each line seen twice
+    plain = group_segments(segments, SHAPE, "image-split")
+    inner = group_segments(segments, SHAPE, "image-split", inner_lines=True)
+    wanted = drawn_slopes([inner_left[2:] + inner_left[:2], inner_right[2:] + inner_right[:2]])
+    np.testing.assert_allclose(inner.features, wanted, atol=0.02)
+    assert not np.allclose(plain.features, wanted, atol=0.05)
+    assert set(inner.labels.tolist()) == {0, 1, LEFT_OUT}
+    assert (inner.labels[[1, 3, 5, 7]] == LEFT_OUT).all()
+    # a car's outline on the right leaning down-left is no right border, however inner
+    car = np.array([[200.0, 120, 170, 150]])
+    with_car = group_segments(np.vstack([segments, car]), SHAPE, "image-split", inner_lines=True)
+    assert with_car.labels[-1] == LEFT_OUT
+    np.testing.assert_allclose(with_car.features, wanted, atol=0.02)
+
+
+def test_inner_lines_keep_a_double_centre_line_as_one_line() -> None:
+    # two stripes 4 px apart are one marking; a faint short segment inside is not a line
+    a, b = (120, 72, 40, 159), (124, 72, 44, 159)
+    stub = (140, 150, 136, 159)
+    segments = np.array([a, b, stub, (210, 72, 280, 159)], dtype=np.float64)
+    result = group_segments(segments, SHAPE, "image-split", inner_lines=True)
+    assert result.labels.tolist() == [0, 0, LEFT_OUT, 1]

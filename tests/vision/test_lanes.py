@@ -191,3 +191,95 @@ def test_min_segment_angle_drops_flat_segments_only() -> None:
     assert (steep < 15).any() and (steep > 40).any()
     kept = detect_segments(img, replace(UDACITY, min_segment_angle=15.0))
     np.testing.assert_array_equal(kept, every[steep >= 15.0])
+
+
+# --- named options of the lane stage (not the paper's)
+
+
+def test_presets_are_the_papers_literal_settings_and_the_dashcam_camera() -> None:
+    paper = LaneConfig.paper()
+    assert paper.smoothing_iterations == 30 and paper.smoothing_margin is None
+    assert paper.roi == LaneConfig.ROI_PRESETS["paper-640x480"]
+    assert (paper.canny_low, paper.canny_high, paper.hough_threshold) == (50, 175, 8)
+    assert (paper.hough_min_line_length, paper.hough_max_line_gap) == (2, 25)
+    assert paper.work_width is None and paper.marks == "none" and paper.vp_tolerance is None
+    dashcam = LaneConfig.dashcam()
+    assert dashcam.roi == LaneConfig.ROI_PRESETS["dashcam"] and dashcam.work_width == 320
+    assert LaneConfig.preset("udacity") == LaneConfig.udacity()
+    with pytest.raises(ParameterError, match=r"^lanes='auto' is invalid"):
+        LaneConfig.preset("auto")
+    # today's defaults are untouched by the new fields
+    assert LaneConfig() == LaneConfig(max_segment_angle=90.0, work_width=None, marks="none")
+
+
+def scaled_road(width: int, height: int) -> np.ndarray:
+    """The same two-line road drawn at any size (coordinates relative to the frame)."""
+    img = np.full((height, width, 3), 90, np.uint8)
+    for x1, y1, x2, y2 in ((0.19, 1.0, 0.44, 0.45), (0.81, 1.0, 0.56, 0.45)):
+        p1 = (round(x1 * (width - 1)), round(y1 * (height - 1)))
+        p2 = (round(x2 * (width - 1)), round(y2 * (height - 1)))
+        cv2.line(img, p1, p2, (230, 230, 230), max(1, round(3 * width / 320)))
+    return img
+
+
+@pytest.mark.parametrize("size", [(320, 160), (640, 320), (1280, 640)])
+def test_a_working_width_makes_one_setting_serve_every_frame_size(size: tuple[int, int]) -> None:
+    w, h = size
+    cfg = replace(UDACITY, work_width=320)
+    seg = detect_segments(scaled_road(w, h), cfg)
+    assert len(seg) >= 2
+    rel = seg / [w - 1, h - 1, w - 1, h - 1]
+    # every end point lies on one of the two drawn lines, in relative coordinates
+    for x, y in np.vstack([rel[:, :2], rel[:, 2:]]):
+        xs = [0.19 + (0.44 - 0.19) * (1 - y) / 0.55, 0.81 + (0.56 - 0.81) * (1 - y) / 0.55]
+        assert min(abs(x - v) for v in xs) < 0.015
+    # at 1280x640 the paper's pixel values (min length 2, gap 25, 5x5 blur) mean something else
+    if w == 1280:
+        literal = detect_segments(scaled_road(w, h), UDACITY)
+        assert len(literal) != len(seg)
+
+
+def test_max_segment_angle_drops_near_vertical_segments() -> None:
+    img = road([(60, 159, 140, 72), (250, 159, 252, 60)])  # a lane border and a pole
+    every = detect_segments(img, UDACITY)
+    steep = np.degrees(np.arctan2(every[:, 3] - every[:, 1], np.abs(every[:, 2] - every[:, 0])))
+    assert (steep > 85).any() and (steep < 60).any()
+    kept = detect_segments(img, replace(UDACITY, max_segment_angle=80.0))
+    np.testing.assert_array_equal(kept, every[steep <= 80.0])
+
+
+def test_vanishing_point_filter_keeps_segments_pointing_at_it() -> None:
+    # two borders meet at (160, 60); a third line (a kerb of a side road) does not
+    lines = [(40, 159, 136, 80), (280, 159, 184, 80), (200, 159, 300, 110)]
+    img = road(lines)
+    every = detect_segments(img, UDACITY)
+    vp = (160 / (W - 1), 60 / (H - 1))
+    cfg = replace(UDACITY, vanishing_point=vp, vp_tolerance=0.05)
+    kept = detect_segments(img, cfg)
+    assert 0 < len(kept) < len(every)
+    a = (kept[:, 2] - kept[:, 0]) / (kept[:, 3] - kept[:, 1])
+    miss = np.abs(kept[:, 0] + a * (60 - kept[:, 1]) - 160)
+    assert (miss <= 0.05 * W).all()
+
+    def on_kerb(seg: np.ndarray) -> np.ndarray:
+        d = np.array([100.0, -49.0])
+        n = np.array([-d[1], d[0]]) / np.hypot(*d)
+        ends = [np.abs((seg[:, k] - 200) * n[0] + (seg[:, k + 1] - 159) * n[1]) for k in (0, 2)]
+        return (ends[0] < 4) & (ends[1] < 4)
+
+    assert on_kerb(every).any() and not on_kerb(kept).any()
+
+
+@pytest.mark.parametrize(
+    ("change", "name"),
+    [
+        ({"max_segment_angle": 10.0, "min_segment_angle": 20.0}, "lanes.max_segment_angle"),
+        ({"work_width": 8}, "lanes.work_width"),
+        ({"marks_width": 0.9}, "lanes.marks_width"),
+        ({"vp_tolerance": 0.2}, "lanes.vp_tolerance"),  # without a vanishing point
+        ({"vanishing_point": (0.5, float("nan"))}, "lanes.vanishing_point"),
+    ],
+)
+def test_absurd_named_options_raise_parameter_error(change: dict, name: str) -> None:
+    with pytest.raises(ParameterError, match=f"^{name}="):
+        LaneConfig(**change)

@@ -112,3 +112,21 @@ def test_caption_shows_the_chosen_inputs_and_fits_the_frame() -> None:
     assert drawn.size and drawn.max() < W - 2
     with pytest.raises(ParameterError, match=r"^columns=\(0, 9\) is invalid"):
         draw_lane_overlay(frame(), SEGMENTS, features, columns=(0, 9))
+
+
+def test_lane_overlay_draws_what_auto_chose() -> None:
+    from qdcnn.vision.camera import CameraGeometry, camera_roi
+    from qdcnn.vision.overlays import CAMERA_COLOUR
+
+    hood = tuple([1.0] * 6 + [0.9] * 5 + [1.0] * 6)
+    camera = CameraGeometry(
+        (H, W), 0.4, (0.5, 0.4), hood, camera_roi((H, W), 0.4, 0.5, hood), "estimated", 9, 10
+    )
+    features = group_segments(SEGMENTS, (H, W))
+    out = draw_lane_overlay(frame(), SEGMENTS, features, roi=camera.roi, camera=camera)
+    xv, yv = round(0.5 * (W - 1)), round(0.4 * (H - 1))
+    assert (np.abs(out[yv, xv - 3 : xv + 4].astype(int) - CAMERA_COLOUR).sum(-1) < 60).any()
+    hood_row = round(0.9 * (H - 1))
+    assert (np.abs(out[hood_row, 150:170].astype(int) - CAMERA_COLOUR).sum(-1) < 90).any()
+    plain = draw_lane_overlay(frame(), SEGMENTS, features, roi=camera.roi)
+    assert not (np.abs(plain[yv, xv - 3 : xv + 4].astype(int) - CAMERA_COLOUR).sum(-1) < 60).any()

@@ -4,7 +4,12 @@ Three presets imitate the paper's data sets (Sec. III-B): ``track1`` (Udacity la
 sunny, gentle bends, few shadows), ``track2`` (Udacity mountain track: hills, sharp bends,
 many hard cast shadows from trees, poles and buildings, plus dark decoys such as tar
 repairs and dark bushes) and ``rain`` (CARLA-like town road in rain: overcast, wet and
-reflective, rain streaks, few weak shadows).
+reflective, rain streaks, few weak shadows). A fourth, ``dashcam``, is a real windscreen
+camera on a two-lane public road (:mod:`qdcnn.data.synthetic_world`): no hood, square pixels
+at 640x480 (``STYLES["dashcam"].size``; pass ``width``/``height``), a horizon drawn per drive
+between 36 % and 50 % of the height and a small camera yaw, a double yellow centre line and
+white edge lines, roadside trees with their shadows across the lane, parked cars and other
+traffic; ``RoadScene.horizon`` and ``vanishing_point`` give its exact camera geometry.
 
 A scene is rendered from a small 3-D world (:mod:`qdcnn.data.synthetic_world`) by
 :mod:`qdcnn.data.synthetic_render`, so the shadow mask, road mask and lane-marking polylines
@@ -40,7 +45,7 @@ from qdcnn.data.synthetic_world import (
 )
 from qdcnn.errors import ParameterError
 
-PRESETS: tuple[str, ...] = ("track1", "track2", "rain")
+PRESETS: tuple[str, ...] = ("track1", "track2", "rain", "dashcam")
 STEERING_PER_CURVATURE = 20.0  # steering per unit of road curvature (1/m): radius 20 m -> 1.0
 STRAIGHT_MAX_STEERING = 0.02  # |steering| of straight scenes stays at or below this
 LABEL_THRESHOLD = 0.05  # |steering| below this is "straight" (LabelConfig.threshold)
@@ -82,6 +87,10 @@ class RoadScene:
         Speed as the Udacity simulator logs it (miles per hour).
     throttle : float
         Throttle in [0, 1] as the simulator logs it.
+    horizon : float
+        Image row (pixels) of the camera's flat-ground horizon.
+    vanishing_point : (float, float)
+        Image ``(x, y)`` (pixels) where the road's borders at the car vanish.
     """
 
     image: NDArray[np.uint8]
@@ -96,6 +105,8 @@ class RoadScene:
     frame: int | None = None
     speed: float = 30.19
     throttle: float = 1.0
+    horizon: float = float("nan")
+    vanishing_point: tuple[float, float] = (float("nan"), float("nan"))
 
 
 def direction_of(steering: float, threshold: float = LABEL_THRESHOLD) -> int:
@@ -224,6 +235,8 @@ def _scene(
         frame=frame,
         speed=float(take.style.speed_mph + rng.normal(0, 0.002)),
         throttle=1.0,
+        horizon=out.horizon,
+        vanishing_point=out.vanishing_point,
     )
 
 

@@ -22,9 +22,11 @@ from numpy.typing import NDArray
 
 from qdcnn.data.synthetic_world import (
     CAMERA_HEIGHT,
+    CAR_COLOURS,
     ROUTE_STEP,
     SCENERY_DISTANCE,
     VIEW_DISTANCE,
+    WHITE_LINE,
     Camera,
     FloatArray,
     FrameState,
@@ -36,7 +38,7 @@ F32 = NDArray[np.float32]
 U8 = NDArray[np.uint8]
 SHIFT = 4  # sub-pixel bits for cv2 drawing
 ONE = 1 << SHIFT
-FOLIAGE, TRUNK, POLE, WALL = 1, 2, 3, 4
+FOLIAGE, TRUNK, POLE, WALL, CAR = 1, 2, 3, 4, 5
 MIN_Z = 1.0  # near clipping depth (metres); far below the bottom row
 MAX_TURN_COS = 0.5  # the road is drawn until it has turned 60 degrees from the view axis
 EDGE_COLOURS: dict[str, dict[str, tuple[float, float, float]]] = {
@@ -54,6 +56,8 @@ class Frame:
     shadow_mask: NDArray[np.bool_]
     road_mask: NDArray[np.bool_]
     lane_lines: list[NDArray[np.float64]]
+    horizon: float = float("nan")  # image row of the flat-ground horizon
+    vanishing_point: tuple[float, float] = (float("nan"), float("nan"))  # of the road at the car
 
 
 # ----------------------------------------------------------------------------- textures
@@ -352,12 +356,20 @@ def render(
     style = take.style
     route = take.route
     sc = take.scenery
-    cam = Camera(width, height, height * (0.40 + state.pitch), state.hill, state.hill_distance)
-    cx_w, cz_w = route.offset(np.array([state.s]), state.lateral)
+    cam = Camera(
+        width,
+        height,
+        height * (take.horizon + state.pitch),
+        state.hill,
+        state.hill_distance,
+        style.focal,
+    )
+    cx_w, cz_w = route.offset(np.array([state.s]), state.lateral + take.lane_offset)
     _, _, h_road = route.pose(np.array([state.s]))
     z_vis, v_top, rows_tab, z_tab = cam.visible_ground()
     top = min(max(math.ceil(v_top), 0), height)
-    view = _View(cam, float(cx_w[0]), float(cz_w[0]), float(h_road[0]) + state.heading, z_vis, top)
+    yaw = state.heading + take.yaw
+    view = _View(cam, float(cx_w[0]), float(cz_w[0]), float(h_road[0]) + yaw, z_vis, top)
     shape = (height, width)
 
     # --- per-row depth, world coordinates and textures of the ground
@@ -437,13 +449,28 @@ def render(
 
     line_d = half - take.line_inset - take.line_width / 2
     lw2 = take.line_width / 2
-    lines = [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
-    marks: list[FloatArray] = [_strip(view, centre, d - lw2, d + lw2) for d in (-line_d, line_d)]
-    if take.centre_dash:
-        dash = np.arange(math.floor(state.s / 9.0) * 9.0, s_hi, 9.0)
-        marks += list(_quads(view, take, dash, 3.0, -lw2, lw2))
-    mark = _coverage(shape, marks, True)[top:] * np.clip(0.85 + 0.15 * fine_road, 0.6, 1.0)
-    _blend(ground, _rgb(take.line_colour), mark)
+    wear = np.clip(0.85 + 0.15 * fine_road, 0.6, 1.0)
+    if style.layout == "two-lane":
+        # double yellow centre line, white edge lines at the lanes' outer borders; the car's
+        # lane is the right one: its borders are the centre line and the right edge line
+        lines = [_curve(view, centre, 0.0), _curve(view, centre, take.lane_width)]
+        pair = lw2 + 0.05
+        yellow = [_strip(view, centre, d - lw2, d + lw2) for d in (-pair, pair)]
+        white = [
+            _strip(view, centre, d - lw2, d + lw2) for d in (-take.lane_width, take.lane_width)
+        ]
+        _blend(ground, _rgb(WHITE_LINE), _coverage(shape, white, True)[top:] * wear)
+        _blend(ground, _rgb(take.line_colour), _coverage(shape, yellow, True)[top:] * wear)
+    else:
+        lines = [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
+        marks: list[FloatArray] = [
+            _strip(view, centre, d - lw2, d + lw2) for d in (-line_d, line_d)
+        ]
+        if take.centre_dash:
+            dash = np.arange(math.floor(state.s / 9.0) * 9.0, s_hi, 9.0)
+            marks += list(_quads(view, take, dash, 3.0, -lw2, lw2))
+        mark = _coverage(shape, marks, True)[top:] * wear
+        _blend(ground, _rgb(take.line_colour), mark)
 
     # --- wet reflections (shadows then darken them too: a wet road shows weak shadows)
     horizon = np.asarray(style.sky_horizon, np.float32)
@@ -483,6 +510,8 @@ def render(
     # --- roadside objects (casters), far to near
     labels = np.zeros(shape, np.uint8)
     _draw_objects(img, labels, take, view)
+    if take.cars:
+        _draw_cars(img, labels, take, view, state.s / (style.speed_mph * 0.44704))
     foliage = labels == FOLIAGE
     if foliage.any():
         n = _screen_noise(16, 1.6, width, height, 1.0)
@@ -510,8 +539,12 @@ def render(
     visible &= (labels == 0) & (hood_cov < 0.5)
     shadow_mask = (sh_alpha >= 0.5) & visible
     road_mask = (road_cov >= 0.5) & visible
-    lane_lines = [_visible(p, width, height, top, hood_cov) for p in lines]
-    return Frame(image, shadow_mask, road_mask, lane_lines)
+    hidden = hood_cov
+    if style.layout == "two-lane":  # markings behind cars and trees are not visible
+        hidden = np.maximum(hood_cov, (labels > 0).astype(np.float32))
+    lane_lines = [_visible(p, width, height, top, hidden) for p in lines]
+    vp = (cam.cx + cam.fx * math.tan(-yaw), cam.horizon)
+    return Frame(image, shadow_mask, road_mask, lane_lines, cam.horizon, vp)
 
 
 def _visible(
@@ -707,6 +740,87 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, SHIFT)
 
 
+def _draw_cars(img: F32, labels: U8, take: Take, view: _View, t: float) -> None:
+    """Draw the take's cars where they are at time ``t`` (seconds), farthest first.
+
+    A car is three boxes: a dark underbody (wheels) up to 0.25 m, the body in its colour up
+    to 60 % of its height, and a cabin of dark glass, shorter, above it.
+    """
+    cars = take.cars
+    route = take.route
+    s_now = cars["s"] + cars["speed"] * t
+    ok = (s_now > route.s0 + 3.0) & (s_now < route.s_end - 3.0)
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return
+    x, z = route.offset(s_now[idx], cars["d"][idx])
+    _, _, heading = route.pose(s_now[idx])
+    xc, zc = view.to_camera(x, z)
+    far = min(SCENERY_DISTANCE, view.z_vis + 5.0)
+    visible = (zc > 3.0) & (zc < far) & (np.abs(xc) < (view.cam.cx + 40) * zc / view.cam.fx)
+    limit = 8.0 * max(view.cam.width, view.cam.height)
+    order = np.argsort(-zc[visible])
+    for j in np.flatnonzero(visible)[order]:
+        i = idx[j]
+        fwd = np.array([math.sin(heading[j]), math.cos(heading[j])])
+        right = np.array([math.cos(heading[j]), -math.sin(heading[j])])
+        centre = np.array([x[j], z[j]])
+        length, width, height = (float(cars[k][i]) for k in ("length", "width", "height"))
+        colour = np.asarray(CAR_COLOURS[int(cars["colour"][i])]) * take.tint
+        glass = np.array([0.10, 0.12, 0.15])
+        boxes = (
+            (length * 0.96, width * 0.92, 0.0, 0.25, np.array([0.05, 0.05, 0.05]), 0.0),
+            (length, width, 0.25, 0.6 * height, colour, 0.0),
+            (length * 0.55, width * 0.86, 0.6 * height, height, glass, -0.08 * length),
+        )
+        for box_l, box_w, z0, z1, paint, shift in boxes:
+            c = centre + shift * fwd
+            corners = np.array(
+                [c + a * fwd * box_l / 2 + b * right * box_w / 2 for a, b in _BOX_CORNERS]
+            )
+            for face, face_colour in _box_faces(take, view, corners, z0, z1, paint, zc[j]):
+                fixed = [_fixed(face, limit)]
+                cv2.fillPoly(img, fixed, face_colour, cv2.LINE_8, SHIFT)
+                cv2.fillPoly(labels, fixed, CAR, cv2.LINE_8, SHIFT)
+
+
+_BOX_CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+
+
+def _box_faces(
+    take: Take,
+    view: _View,
+    corners: FloatArray,
+    z0: float,
+    z1: float,
+    colour: FloatArray,
+    depth: float,
+) -> list[tuple[FloatArray, tuple[float, ...]]]:
+    """Image polygons and colours of a box's walls facing the camera, then its top."""
+    out: list[tuple[FloatArray, tuple[float, ...]]] = []
+    centre = corners.mean(0)
+    cam_pos = np.array([view.x0, view.z0])
+    sun = -np.array([math.sin(take.shadow_direction), math.cos(take.shadow_direction)])
+    for k in range(4):
+        a, b = corners[k], corners[(k + 1) % 4]
+        mid = (a + b) / 2
+        normal = mid - centre
+        if np.dot(normal, cam_pos - mid) <= 0:
+            continue
+        lit = take.sun_out and float(np.dot(normal, sun)) > 0
+        shade = 1.0 if lit else 0.7
+        pts = _project_3d(view, np.array([[*a, z0], [*b, z0], [*b, z1], [*a, z1]]))
+        if pts is not None:
+            paint = _hazed((colour * shade)[None], np.array([depth]), take)[0]
+            out.append((pts, tuple(float(v) for v in paint)))
+    if z1 < CAMERA_HEIGHT:
+        top = _project_3d(view, np.column_stack([corners, np.full(4, z1)]))
+        if top is not None:
+            paint = _hazed((colour * 1.1)[None], np.array([depth]), take)[0]
+            out.append((top, tuple(float(v) for v in np.clip(paint, 0, 1))))
+    return out
+
+
 def _building_faces(
     take: Take,
     view: _View,
@@ -775,6 +889,11 @@ def _project_3d(view: _View, pts: FloatArray) -> FloatArray | None:
 
 
 # ----------------------------------------------------------------------------- camera effects
+
+
+def hood_coverage(width: int, height: int) -> F32:
+    """Coverage (0 to 1, read-only) of the car bonnet drawn with ``hood=True`` at this size."""
+    return _hood(width, height)[0]
 
 
 @lru_cache(maxsize=8)

@@ -9,7 +9,7 @@ is ``dh/ds`` (1/m), positive for a right bend.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import cv2
@@ -70,6 +70,16 @@ class Style:
     hood: bool
     rain: bool
     speed_mph: float
+    # --- real-camera geometry (the "dashcam" preset); the defaults are the Udacity-like camera
+    layout: str = "edges"  # "edges": two boundary lines; "two-lane": double yellow + white edges
+    lane_width: tuple[float, float] = (3.4, 3.7)  # "two-lane": width of each lane (m)
+    focal: tuple[float, float | None] = (0.6, 1.2)  # fx / W and fy / H (None: fy = fx)
+    horizon: tuple[float, float] = (0.40, 0.40)  # camera horizon row / H, drawn per take
+    yaw: float = 0.0  # camera yaw to the car's axis, drawn per take in [-yaw, yaw] (radians)
+    parked_cars: float = 0.0  # parked cars per 100 m on the right shoulder
+    traffic: float = 0.0  # oncoming cars per 100 m in the other lane
+    lead_cars: float = 0.0  # cars per 100 m ahead in the car's own lane
+    size: tuple[int, int] = (320, 160)  # the preset's natural frame size (width, height)
 
 
 STYLES: dict[str, Style] = {
@@ -199,7 +209,68 @@ STYLES: dict[str, Style] = {
         rain=True,
         speed_mph=18.0,
     ),
+    "dashcam": Style(
+        name="dashcam",
+        bend_steering=(0.12, 0.45),
+        road_width=(8.2, 8.8),
+        hill_height=(-2.0, 2.0),
+        hill_distance=(70.0, 140.0),
+        pitch=0.012,
+        sky_top=(0.42, 0.60, 0.88),
+        sky_horizon=(0.80, 0.86, 0.92),
+        asphalt=(0.36, 0.36, 0.38),
+        asphalt_grain=0.10,
+        terrain=((0.36, 0.40, 0.22), (0.50, 0.45, 0.30)),
+        terrain_grain=0.25,
+        line_colours=((0.86, 0.70, 0.16), (0.82, 0.66, 0.20)),  # the centre line's yellows
+        line_width=(0.10, 0.15),
+        line_inset=(0.0, 0.0),
+        centre_dash_prob=0.0,
+        edge_kind="gravel",
+        edge_prob=0.7,
+        background="mountain",
+        hills=(0.04, 0.12),
+        tree_kind="broadleaf",
+        foliage=((0.16, 0.26, 0.12), (0.22, 0.30, 0.14), (0.28, 0.34, 0.16), (0.12, 0.20, 0.10)),
+        near_trees=9.0,
+        far_trees=22.0,
+        poles=1.5,
+        buildings=0.4,
+        building_colours=((0.70, 0.68, 0.64), (0.58, 0.50, 0.42), (0.80, 0.78, 0.74)),
+        sun_prob=0.8,
+        sun_elevation=(25.0, 55.0),
+        shadow_ratio=(0.30, 0.50),
+        shadow_tint=(1.0, 0.96, 0.84),
+        penumbra=0.10,
+        tar_patches=1.0,
+        dark_bushes=4.0,
+        puddles=0.0,
+        wet=0.0,
+        haze_distance=500.0,
+        hood=False,
+        rain=False,
+        speed_mph=28.0,
+        layout="two-lane",
+        focal=(0.8, None),
+        horizon=(0.36, 0.50),
+        yaw=0.04,
+        parked_cars=2.0,
+        traffic=3.0,
+        lead_cars=0.5,
+        size=(640, 480),
+    ),
 }
+
+#: colours of the "two-lane" layout's white edge lines (the yellow comes from line_colours)
+WHITE_LINE = (0.90, 0.90, 0.88)
+CAR_COLOURS: tuple[RGB, ...] = (
+    (0.92, 0.92, 0.90),
+    (0.08, 0.08, 0.09),
+    (0.62, 0.63, 0.65),
+    (0.55, 0.10, 0.10),
+    (0.15, 0.22, 0.45),
+    (0.35, 0.36, 0.38),
+)
 
 
 @dataclass(frozen=True)
@@ -266,14 +337,16 @@ class Camera:
     horizon: float  # image row of the flat-ground horizon
     hill: float
     hill_distance: float
+    focal: tuple[float, float | None] = (0.6, 1.2)  # fx / width, fy / height (None: fy = fx)
 
     @property
     def fx(self) -> float:
-        return 0.6 * self.width
+        return self.focal[0] * self.width
 
     @property
     def fy(self) -> float:
-        return 1.2 * self.height
+        fy = self.focal[1]
+        return self.fx if fy is None else fy * self.height
 
     @property
     def cx(self) -> float:
@@ -363,6 +436,15 @@ class Take:
     treeline: FloatArray
     tint: FloatArray  # per-take colour gain of the materials
     texture_offset: tuple[float, float]
+    horizon: float = 0.40  # camera horizon row / frame height (before pitch)
+    yaw: float = 0.0  # camera yaw to the car's axis (radians, > 0 looks right)
+    lane_width: float = 0.0  # "two-lane": width of each lane (m); the car drives in the right
+    cars: dict[str, FloatArray] = field(default_factory=dict)  # traffic and parked cars
+
+    @property
+    def lane_offset(self) -> float:
+        """Lateral position (m right of the centreline) of the car's own lane centre."""
+        return 0.5 * self.lane_width
 
 
 @dataclass(frozen=True)
@@ -666,7 +748,7 @@ def make_take(
     edges = _edge_presence(rng, style, route)
     scenery = make_scenery(rng, style, route, s_lo, s_hi, shadow_direction, elevation, sun_out)
     lo, hi = style.hills
-    return Take(
+    take = Take(
         style=style,
         route=route,
         scenery=scenery,
@@ -683,6 +765,60 @@ def make_take(
         tint=1.0 + rng.uniform(-0.05, 0.05, 3),
         texture_offset=(float(rng.uniform(0, 1000)), float(rng.uniform(0, 1000))),
     )
+    if style.layout != "two-lane":
+        return take  # the Udacity-like presets draw nothing more (their takes stay as they were)
+    lane = float(rng.uniform(*style.lane_width))
+    return replace(
+        take,
+        horizon=float(rng.uniform(*style.horizon)),
+        yaw=float(rng.uniform(-style.yaw, style.yaw)),
+        lane_width=lane,
+        cars=make_cars(rng, style, route, s_lo, s_hi, lane),
+    )
+
+
+def make_cars(
+    rng: np.random.Generator,
+    style: Style,
+    route: Route,
+    s_lo: float,
+    s_hi: float,
+    lane_width: float,
+) -> dict[str, FloatArray]:
+    """Parked cars on the right shoulder, oncoming traffic and cars ahead in the own lane.
+
+    Each car is a box on the road: ``s`` (arc length at time 0), ``d`` (lateral offset, m),
+    ``speed`` (m/s along the route: 0 parked, < 0 oncoming), ``length``, ``width``,
+    ``height`` (m) and ``colour`` (index into :data:`CAR_COLOURS`). The renderer moves each
+    car to ``s + speed * t`` at the frame's time ``t``.
+    """
+    half = route.width / 2.0
+    span_hi = s_hi + 400.0  # oncoming cars start far ahead
+    parked = _positions(rng, s_lo, s_hi, style.parked_cars)
+    oncoming = _positions(rng, s_lo, span_hi, style.traffic)
+    ahead = _positions(rng, 20.0, s_hi, style.lead_cars)
+    n_p, n_o, n_a = parked.size, oncoming.size, ahead.size
+    ego = style.speed_mph * 0.44704
+    d = np.concatenate(
+        [
+            half + rng.uniform(0.6, 1.4, n_p),
+            -0.5 * lane_width + rng.normal(0.0, 0.15, n_o),
+            0.5 * lane_width + rng.normal(0.0, 0.1, n_a),
+        ]
+    )
+    speed = np.concatenate(
+        [np.zeros(n_p), -rng.uniform(0.8, 1.2, n_o) * ego, rng.uniform(0.9, 1.0, n_a) * ego]
+    )
+    n = n_p + n_o + n_a
+    return {
+        "s": np.concatenate([parked, oncoming, ahead]),
+        "d": d,
+        "speed": speed,
+        "length": rng.uniform(4.0, 5.0, n),
+        "width": rng.uniform(1.7, 1.95, n),
+        "height": rng.uniform(1.35, 1.8, n),
+        "colour": rng.integers(0, len(CAR_COLOURS), n).astype(np.float64),
+    }
 
 
 def _edge_presence(

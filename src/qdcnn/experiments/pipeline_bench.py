@@ -5,6 +5,11 @@ on other frames first. The process can be pinned to one CPU core
 (``os.sched_setaffinity``) with OpenCV and BLAS limited to one thread, so the
 frames-per-second figure is a one-core number. CNN inference frames/s are
 reported beside it when torch is installed.
+
+:func:`bench_lane_stage` times the lane stage alone on 640x480 frames of the synthetic
+``dashcam`` preset, as a real windscreen camera gives them: the per-recording camera
+estimate (auto ROI, timed once, reported apart) and per frame the colour evidence, Canny,
+Hough, the segment filters and the grouping (``qdcnn bench pipeline`` adds it as a row).
 """
 
 from __future__ import annotations
@@ -20,11 +25,12 @@ import numpy as np
 
 from qdcnn._optional import has_torch
 from qdcnn._validation import check_int
+from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
 from qdcnn.data.frames import load_frameset
 from qdcnn.experiments.direction_model import default_config, train_direction_model
 from qdcnn.experiments.features import compute_features
 from qdcnn.experiments.methods import get_method
-from qdcnn.pipeline import process_frame
+from qdcnn.pipeline import auto_lanes, process_frame, recording_sample
 
 
 def pin_to_one_core() -> int | None:
@@ -51,8 +57,13 @@ def bench_pipeline(
     cnn: bool = True,
     seed: int = 0,
     say: Callable[[str], None] | None = None,
+    lane_stage: bool = True,
 ) -> dict[str, Any]:
-    """Frames per second of ``process_frame`` + classifier decision for each method (measured)."""
+    """Frames per second of ``process_frame`` + classifier decision for each method (measured).
+
+    With ``lane_stage`` the lane stage alone at 640x480 (:func:`bench_lane_stage`) is one
+    more row of ``pipeline``.
+    """
     check_int("frames", frames, 1, 100_000)
     log = say or (lambda _m: None)
     core = pin_to_one_core() if one_core else None
@@ -103,6 +114,11 @@ def bench_pipeline(
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
         "pipeline": rows,
     }
+    if lane_stage:
+        log("timing the lane stage at 640x480")
+        row = bench_lane_stage(seed=seed)
+        rows.append(row)
+        result["lane_stage"] = row
     if cnn and has_torch():
         from qdcnn.models.training import inference_fps
 
@@ -115,3 +131,57 @@ def bench_pipeline(
             for arch in ("pilotnet", "resnet50")
         ]
     return result
+
+
+def lane_stage_config() -> PipelineConfig:
+    """The lane settings the 640x480 row times: ``dashcam`` with Lab marks and both filters."""
+    lanes = LaneConfig.dashcam(
+        remove_shadows=False,
+        marks="lab",
+        min_segment_angle=20.0,
+        max_segment_angle=80.0,
+        vp_tolerance=0.3,
+    )
+    return PipelineConfig(lanes=lanes, grouping=GroupingConfig(inner_lines=True))
+
+
+def bench_lane_stage(
+    *, frames: int = 60, size: tuple[int, int] = (640, 480), seed: int = 0, passes: int = 3
+) -> dict[str, Any]:
+    """Measured one-thread time of the lane stage (no shadow removal, no decision).
+
+    Auto ROI (:func:`qdcnn.pipeline.auto_lanes` on the drive's sample frames) once, then per
+    frame :func:`process_frame` with image-split grouping under :func:`lane_stage_config`
+    (Lab marks, angle and vanishing-point filters, innermost lines). The median of
+    ``passes`` passes over the frames is reported, as wall time and as this process's CPU
+    time (the two agree on an idle core; on a shared machine the wall time also counts
+    the other processes' turns).
+    """
+    from qdcnn.data.synthetic import generate_drive
+
+    w, h = size
+    images = [s.image for s in generate_drive("dashcam", frames, seed=seed, width=w, height=h)]
+    t0 = time.perf_counter()
+    cfg, camera = auto_lanes(
+        [images[i] for i in recording_sample(len(images))], lane_stage_config()
+    )
+    estimate = time.perf_counter() - t0
+    process_frame(images[0], cfg, ("image-split",))
+    runs, cpu = [], []
+    for _ in range(passes):
+        t0, c0 = time.perf_counter(), time.process_time()
+        for image in images:
+            process_frame(image, cfg, ("image-split",))
+        runs.append((time.perf_counter() - t0) / len(images))
+        cpu.append((time.process_time() - c0) / len(images))
+    per_frame = float(np.median(runs))
+    return {
+        "method": f"lane stage only, {w}x{h} (auto ROI, Lab marks, filters, image-split)",
+        "ms_per_frame": 1e3 * per_frame,
+        "frames_per_second": 1.0 / per_frame,
+        # CPU time of this process: what the wall time is when no other process shares the core
+        "cpu_ms_per_frame": 1e3 * float(np.median(cpu)),
+        "camera_estimate_s": estimate,
+        "camera": camera.describe(),
+        "size": [w, h],
+    }

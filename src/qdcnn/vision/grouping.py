@@ -69,7 +69,7 @@ References
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from typing import Any, Literal
@@ -77,9 +77,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.config import GroupingConfig, LaneConfig
+from qdcnn.config import GroupingConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.vision.lanes import detect_segments
 
 METHODS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
 EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
@@ -105,7 +104,15 @@ Status = Literal["ok", "one-line", "no-lines"]
 _SPECTRAL_NEIGHBOURS = 10
 #: segments fitting one line within this fraction of the width are one line (group_segments)
 MERGE_TOLERANCE = 0.03
-_DEFAULT_LANES = LaneConfig()
+#: label of segments that ``inner_lines`` leaves out of both lines
+LEFT_OUT = 2
+#: inner_lines: segments whose lines cross the reference row this close (fraction of the
+#: width) belong to one line; a line needs this share of its side's segment length
+INNER_BAND, INNER_SHARE = 0.04, 0.2
+#: inner_lines: the reference row (relative), near the bottom where lines are far apart
+INNER_ROW = 0.9
+#: inner_lines: largest dx/dy of a border leaning the wrong way for its side
+INNER_LEAN = 0.1
 
 
 @dataclass
@@ -124,7 +131,8 @@ class LaneFeatures:
     lines : list of two ((a, b) or None)
         Fitted ``x = a * y + b`` per group, left first.
     labels : (n_segments,) int64 array
-        Group of each segment: 0 = left line, 1 = right line.
+        Group of each segment: 0 = left line, 1 = right line, 2 (:data:`LEFT_OUT`) = in
+        neither line (only with ``inner_lines``).
     method : str
         Grouping method used.
     feature_names : tuple of str
@@ -134,6 +142,8 @@ class LaneFeatures:
     middle_line : (a, b) or None
         The centre line between the two fitted lines (their average), drawn by the
         image-split overlay; None unless both lines exist.
+    segments : (n_segments, 4) array or None
+        The segments that were grouped (``labels`` gives each one's group).
     """
 
     features: NDArray[np.float64]
@@ -145,6 +155,7 @@ class LaneFeatures:
     feature_names: tuple[str, ...] = SLOPE_NAMES
     shape: tuple[int, int] = (0, 0)
     middle_line: tuple[float, float] | None = field(default=None)
+    segments: NDArray[np.float64] | None = field(default=None, repr=False)
 
 
 def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
@@ -238,6 +249,7 @@ def group_segments(
     seed: int = 0,
     extra_features: Sequence[str] = (),
     merge_tolerance: float | None = MERGE_TOLERANCE,
+    inner_lines: bool = False,
 ) -> LaneFeatures:
     """Split segments into a left and a right group, fit a line to each, return the slopes.
 
@@ -261,6 +273,10 @@ def group_segments(
         and spectral always return two clusters, e.g. the two borders of one painted
         stripe): that single line is kept and the status is "one-line". ``None`` never
         merges (two groups always give two slopes).
+    inner_lines : bool
+        Keep only each group's innermost line (not the paper's; :func:`inner_line_labels`):
+        the segments of other lines on that side (the far edge of the other lane, a kerb,
+        a parked car) get label :data:`LEFT_OUT` and no part in the fit.
 
     Returns
     -------
@@ -305,13 +321,16 @@ def group_segments(
         elif len(groups) == 1:
             labels = np.full(len(seg), int(mid_x.mean() >= centre), dtype=np.int64)
 
+    if inner_lines:
+        labels = _inner_line_labels(seg, labels, h, w)
+    kept = labels < LEFT_OUT
     lines = [fit_line(seg[labels == g]) for g in (0, 1)]
     merged = None
     if merge_tolerance is not None and lines[0] is not None and lines[1] is not None:
-        merged = _one_line(seg, merge_tolerance * w)
+        merged = _one_line(seg[kept], merge_tolerance * w)
     if merged is not None:
-        slot = int(mid_x.mean() >= centre)
-        labels = np.full(len(seg), slot, dtype=np.int64)
+        slot = int(mid_x[kept].mean() >= centre)
+        labels = np.where(kept, slot, LEFT_OUT).astype(np.int64)
         lines = [None, None]
         lines[slot] = merged
     n_lines = sum(line is not None for line in lines)
@@ -322,7 +341,7 @@ def group_segments(
             0.5 * (lines[0][0] + lines[1][0]),
             0.5 * (lines[0][1] + lines[1][1]),
         )
-    values = _feature_values(lines, extra_features, h, w, seg, labels)
+    values = feature_values(lines, extra_features, h, w, seg, labels)
     return LaneFeatures(
         features=values,
         status=status,
@@ -333,91 +352,47 @@ def group_segments(
         feature_names=names,
         shape=(h, w),
         middle_line=middle,
+        segments=seg,
     )
 
 
-def extract_lane_features(
-    image: NDArray[np.uint8],
-    lane_config: LaneConfig = _DEFAULT_LANES,
-    method: str = "image-split",
-    *,
-    seed: int = 0,
-    extra_features: Sequence[str] = (),
-    merge_tolerance: float | None = MERGE_TOLERANCE,
-) -> LaneFeatures:
-    """Hough segments of a road frame grouped into two lines, and the lines' slopes.
+def _inner_line_labels(
+    segments: NDArray[np.float64], labels: NDArray[np.int64], h: int, w: int
+) -> NDArray[np.int64]:
+    """Labels with every segment but those of each side's innermost line set to LEFT_OUT.
 
-    Parameters
-    ----------
-    image : (H, W, 3) or (H, W) uint8 array
-        RGB road frame (already shadow-corrected when shadow removal is used).
-    lane_config : LaneConfig
-        Preprocessing and Hough settings.
-    method, seed, extra_features, merge_tolerance
-        See :func:`group_segments`.
-
-    Returns
-    -------
-    LaneFeatures
+    A side's border runs down and outwards (left: ``dx/dy < 0``, right: ``dx/dy > 0``, up
+    to :data:`INNER_LEAN` the other way), so segments leaning the other way (car and
+    shadow outlines) are left out first. Per side, each remaining segment's line
+    ``x = a y + b`` is read at the row :data:`INNER_ROW` of the height; sorted by that
+    crossing, segments closer than :data:`INNER_BAND` of the width to their neighbour form
+    one line. The side keeps the line nearest the frame's centre among those holding at
+    least :data:`INNER_SHARE` of the side's segment length (the own lane's border: a double
+    centre line is one line, the far border of the other lane, a kerb or a parked car's
+    outline another).
     """
-    if method not in METHODS:
-        raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
-    _check_extras(extra_features)
-    segments = detect_segments(image, lane_config)
-    return group_segments(
-        segments,
-        image.shape,
-        method,
-        seed=seed,
-        extra_features=extra_features,
-        merge_tolerance=merge_tolerance,
-    )
-
-
-def extract_features_batch(
-    images: Iterable[NDArray[np.uint8]],
-    lane_config: LaneConfig = _DEFAULT_LANES,
-    method: str = "image-split",
-    *,
-    seed: int = 0,
-    extra_features: Sequence[str] = (),
-    merge_tolerance: float | None = MERGE_TOLERANCE,
-) -> tuple[NDArray[np.float64], list[str]]:
-    """Feature vectors of many frames, one row each.
-
-    Parameters
-    ----------
-    images : iterable of uint8 arrays
-        Road frames (any iterable: a list, or a generator reading them one by one).
-    lane_config, method, seed, extra_features, merge_tolerance
-        See :func:`group_segments`.
-
-    Returns
-    -------
-    features : (n, 2 + k) float64 array
-        Rows as in :attr:`LaneFeatures.features` (NaN for missing lines).
-    statuses : list of str
-        ``"ok"``, ``"one-line"`` or ``"no-lines"`` per frame.
-    """
-    if method not in METHODS:
-        raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
-    n_columns = len(feature_names(extra_features))
-    rows: list[NDArray[np.float64]] = []
-    statuses: list[str] = []
-    for image in images:
-        result = extract_lane_features(
-            image,
-            lane_config,
-            method,
-            seed=seed,
-            extra_features=extra_features,
-            merge_tolerance=merge_tolerance,
-        )
-        rows.append(result.features)
-        statuses.append(result.status)
-    if not rows:
-        return np.empty((0, n_columns), dtype=np.float64), statuses
-    return np.vstack(rows), statuses
+    out = labels.copy()
+    if len(segments) == 0:
+        return out
+    dy = segments[:, 3] - segments[:, 1]
+    a = (segments[:, 2] - segments[:, 0]) / np.where(dy > 1e-9, dy, np.inf)
+    cross = segments[:, 0] + a * (INNER_ROW * (h - 1) - segments[:, 1])
+    cross = np.where(dy > 1e-9, cross, 0.5 * (segments[:, 0] + segments[:, 2]))
+    length = np.hypot(segments[:, 2] - segments[:, 0], dy)
+    for side in (0, 1):
+        leaning = a < INNER_LEAN if side == 0 else a > -INNER_LEAN
+        out[(labels == side) & ~leaning] = LEFT_OUT
+        idx = np.flatnonzero((labels == side) & leaning)
+        if idx.size < 2:
+            continue
+        # innermost first: the left side from the right, the right side from the left
+        order = idx[np.argsort(-cross[idx] if side == 0 else cross[idx])]
+        gaps = np.abs(np.diff(cross[order])) > INNER_BAND * w
+        line_of = np.concatenate([[0], np.cumsum(gaps)])
+        weight = np.bincount(line_of, weights=length[order] + 1e-9)
+        chosen = int(np.argmax(weight >= INNER_SHARE * weight.sum()))
+        out[order[line_of != chosen]] = LEFT_OUT
+    return out
 
 
 def _check_extras(extra_features: Sequence[str]) -> None:
@@ -504,14 +479,18 @@ def _crossing_offset(
     return (left[0] * y + left[1]) / max(w - 1, 1) - 0.5
 
 
-def _feature_values(
-    lines: list[tuple[float, float] | None],
+def feature_values(
+    lines: Sequence[tuple[float, float] | None],
     extra_features: Sequence[str],
     h: int,
     w: int,
     segments: NDArray[np.float64] | None = None,
     labels: NDArray[np.int64] | None = None,
 ) -> NDArray[np.float64]:
+    """The feature vector of two lines ``[left, right]`` (module docstring).
+
+    ``segments`` and ``labels`` are needed only by ``"near-vanishing-point-offset"``.
+    """
     nan = float("nan")
     values = [line[0] if line is not None else nan for line in lines]
     left, right = lines

@@ -16,6 +16,16 @@ Canny's high threshold (175, on the L1 Sobel gradient) is reached only by edges 
 full contrast, at any frame size; on the Udacity recordings no edge survives.
 :meth:`LaneConfig.udacity` keeps every other paper setting and uses 1 iteration.
 
+Named options (not the paper's; the defaults leave the paper's stage unchanged):
+
+- ``work_width``: the frame is resized to this width before smoothing, Canny and Hough, and
+  the segments are scaled back to the frame's pixels, so apertures, Hough lengths and gaps
+  are relative to the frame size (:func:`working_frame`).
+- ``marks``: Canny runs on a mask of white and yellow markings
+  (:func:`qdcnn.vision.marks.marking_mask`) instead of the grey frame.
+- ``max_segment_angle`` and ``vp_tolerance``: segments too steep, or whose line misses the
+  vanishing point, are dropped (:func:`filter_segments`).
+
 References
 ----------
 .. [1] QDCNN paper, ``shared/paper/qdcnn-paper.tex``, Sec. II-A-3, Alg. 2 and Sec. III-A.
@@ -34,9 +44,18 @@ from numpy.typing import NDArray
 
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.marks import marking_mask_u8
 from qdcnn.vision.roi import polygon_mask
 
 _DEFAULT = LaneConfig()
+
+
+def _check_frame(image: NDArray[np.uint8]) -> None:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
+        kind = getattr(image, "dtype", type(image).__name__)
+        raise InputError("image", f"expected a uint8 array, got {kind}")
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
+        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
 
 
 def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -51,14 +70,10 @@ def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     -------
     (H, W) uint8 array
     """
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
-        kind = getattr(image, "dtype", type(image).__name__)
-        raise InputError("image", f"expected a uint8 array, got {kind}")
+    _check_frame(image)
     if image.ndim == 2:
         return image
-    if image.ndim == 3 and image.shape[2] == 3:
-        return np.asarray(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
-    raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
+    return np.asarray(cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
 
 
 def smooth(grey: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArray[np.uint8]:
@@ -134,12 +149,35 @@ def paper_roi(width: int = 640, height: int = 480) -> tuple[tuple[float, float],
     return ((0.0, 1.0), (80 / w1, 380 / h1), (380 / w1, 380 / h1), (1.0, 1.0))
 
 
+def working_frame(image: NDArray[np.uint8], work_width: int | None) -> NDArray[np.uint8]:
+    """The frame resized to ``work_width`` pixels wide (aspect kept), or as is for ``None``.
+
+    Shrinking uses OpenCV's area interpolation (each output pixel the mean of the input
+    pixels it covers), enlarging bilinear interpolation. The height is
+    ``round(H * work_width / W)``, at least 1.
+
+    Examples
+    --------
+    >>> working_frame(np.zeros((480, 640, 3), np.uint8), 320).shape
+    (240, 320, 3)
+    """
+    if work_width is None or image.shape[1] == work_width:
+        return image
+    h, w = image.shape[:2]
+    height = max(1, round(h * work_width / w))
+    interpolation = cv2.INTER_AREA if work_width < w else cv2.INTER_LINEAR
+    return np.asarray(cv2.resize(image, (work_width, height), interpolation=interpolation))
+
+
 def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArray[np.uint8]:
     """Canny edges of the smoothed frame, kept only inside the ROI polygon.
 
     With ``config.edge_channels == "rgb"`` the three colour channels are smoothed and
     given to ``cv2.Canny`` together; it takes at each pixel the gradient of the channel
-    where its magnitude is largest, so an edge seen in any channel counts.
+    where its magnitude is largest, so an edge seen in any channel counts. With
+    ``config.marks`` set, Canny sees the smoothed mask of white and yellow markings
+    (255 on a marking, 0 elsewhere) instead. ``config.work_width`` is not applied here:
+    :func:`detect_segments` resizes the frame first (:func:`working_frame`).
 
     Parameters
     ----------
@@ -169,7 +207,11 @@ def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArr
     edges = np.zeros(shape, dtype=np.uint8)
     # colour Canny (OpenCV): per pixel, the gradient of the channel where it is largest
     source = image if config.edge_channels == "rgb" and image.ndim == 3 else grey
+    if config.marks != "none":
+        source = image
     window = source[rows, cols]
+    if window.size and config.marks != "none":
+        window = marking_mask_u8(window, config, width=shape[1])
     if window.size:
         window_edges = np.asarray(
             cv2.Canny(smooth(window, config), config.canny_low, config.canny_high), dtype=np.uint8
@@ -179,14 +221,17 @@ def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArr
 
 
 def segments_from_edges(
-    edges: NDArray[np.uint8], config: LaneConfig = _DEFAULT
+    edges: NDArray[np.uint8],
+    config: LaneConfig = _DEFAULT,
+    frame_shape: tuple[int, ...] | None = None,
 ) -> NDArray[np.float64]:
     """Probabilistic Hough segments of an edge map, as an ``(N, 4)`` array ``x1, y1, x2, y2``.
 
     Each segment is oriented so that ``y1 <= y2`` (top end first; ``x1 <= x2`` on ties),
-    which makes descriptors independent of the order OpenCV reports the ends in. With
-    ``config.min_segment_angle > 0``, segments less steep than that (degrees from the
-    horizontal) are dropped.
+    which makes descriptors independent of the order OpenCV reports the ends in. When
+    ``frame_shape`` (the ``(H, W)`` of the frame the edges were computed for, at another
+    size) is given, the segments are scaled to its pixels (pixel centres map to pixel
+    centres). Then :func:`filter_segments` applies the angle and vanishing-point filters.
     """
     found = cv2.HoughLinesP(
         edges,
@@ -199,11 +244,58 @@ def segments_from_edges(
     if found is None:
         return np.empty((0, 4), dtype=np.float64)
     seg = found.reshape(-1, 4).astype(np.float64)
+    shape = edges.shape[:2]
+    if frame_shape is not None and tuple(frame_shape[:2]) != tuple(shape):
+        kx = frame_shape[1] / shape[1]
+        ky = frame_shape[0] / shape[0]
+        seg = (seg + 0.5) * np.array([kx, ky, kx, ky]) - 0.5
+        shape = (int(frame_shape[0]), int(frame_shape[1]))
     flip = (seg[:, 1] > seg[:, 3]) | ((seg[:, 1] == seg[:, 3]) & (seg[:, 0] > seg[:, 2]))
     seg[flip] = seg[flip][:, [2, 3, 0, 1]]
-    if config.min_segment_angle > 0:
+    return filter_segments(seg, shape, config)
+
+
+def filter_segments(
+    segments: NDArray[np.float64], shape: tuple[int, ...], config: LaneConfig = _DEFAULT
+) -> NDArray[np.float64]:
+    """Drop segments by angle and by position relative to the vanishing point.
+
+    - ``min_segment_angle`` / ``max_segment_angle``: the angle from the horizontal, in
+      degrees, must lie between them (defaults 0 and 90 keep every segment).
+    - ``vp_tolerance`` (with ``vanishing_point`` ``(xv, yv)`` relative to the frame): the
+      segment's lower end must lie below the vanishing point's row, and its line
+      ``x = a * y + b`` must cross that row within ``vp_tolerance * W`` pixels of ``xv``.
+
+    Parameters
+    ----------
+    segments : (N, 4) array
+        ``x1, y1, x2, y2`` with ``y1 <= y2``, in the pixels of a frame of ``shape``.
+    shape : tuple
+        ``(H, W)`` of that frame.
+    config : LaneConfig
+
+    Returns
+    -------
+    (M, 4) array
+        The kept rows, in order.
+    """
+    seg = segments
+    if len(seg) == 0:
+        return seg
+    if config.min_segment_angle > 0 or config.max_segment_angle < 90:
         steep = np.degrees(np.arctan2(seg[:, 3] - seg[:, 1], np.abs(seg[:, 2] - seg[:, 0])))
-        seg = seg[steep >= config.min_segment_angle]
+        keep = (steep >= config.min_segment_angle) & (steep <= config.max_segment_angle)
+        seg = seg[keep]
+    if config.vp_tolerance is not None and config.vanishing_point is not None and len(seg):
+        h, w = int(shape[0]), int(shape[1])
+        xv = float(config.vanishing_point[0]) * (w - 1)
+        yv = float(config.vanishing_point[1]) * (h - 1)
+        dy = seg[:, 3] - seg[:, 1]
+        flat = dy <= 1e-9
+        a = (seg[:, 2] - seg[:, 0]) / np.where(flat, 1.0, dy)
+        miss = np.abs(seg[:, 0] + a * (yv - seg[:, 1]) - xv)
+        keep = ~flat & (seg[:, 3] > yv) & (miss <= config.vp_tolerance * w)
+        seg = seg[keep]
     return seg
 
 
@@ -219,7 +311,10 @@ def detect_segments(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> 
     Returns
     -------
     (N, 4) float64 array
-        Rows ``x1, y1, x2, y2`` in pixels with ``y1 <= y2``; shape ``(0, 4)`` when no
-        segment is found.
+        Rows ``x1, y1, x2, y2`` in the frame's pixels with ``y1 <= y2``; shape ``(0, 4)``
+        when no segment is found. With ``config.work_width`` set, the edges and the Hough
+        transform are computed at that width and the segments scaled back.
     """
-    return segments_from_edges(lane_edges(image, config), config)
+    _check_frame(image)
+    work = working_frame(image, config.work_width)
+    return segments_from_edges(lane_edges(work, config), config, image.shape)

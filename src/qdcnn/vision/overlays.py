@@ -6,7 +6,7 @@ with OpenCV on a copy of the RGB frame; nothing here reads or writes files.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -14,14 +14,17 @@ from numpy.typing import NDArray
 
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.camera import CameraGeometry
 from qdcnn.vision.grouping import LaneFeatures
 from qdcnn.vision.roi import polygon_pixels
 
 GROUP_COLOURS: tuple[tuple[int, int, int], tuple[int, int, int]] = ((255, 140, 0), (30, 120, 255))
+LEFT_OUT_COLOUR = (150, 150, 150)  # segments in neither line (grouping's inner_lines)
 LINE_COLOURS: tuple[tuple[int, int, int], tuple[int, int, int]] = ((255, 210, 0), (0, 220, 255))
 MIDDLE_COLOUR = (0, 230, 0)
 ROI_COLOUR = (255, 255, 255)
 TEXT_COLOUR = (255, 255, 0)
+CAMERA_COLOUR = (255, 0, 255)  # horizon, vanishing point and hood line of a CameraGeometry
 
 
 def draw_lane_overlay(
@@ -33,6 +36,7 @@ def draw_lane_overlay(
     roi: Sequence[tuple[float, float]] | None = LaneConfig().roi,
     scale: int = 1,
     columns: tuple[int, int] = (0, 1),
+    camera: CameraGeometry | None = None,
 ) -> NDArray[np.uint8]:
     """Draw the lane stage's result on a copy of the frame.
 
@@ -60,6 +64,10 @@ def draw_lane_overlay(
     columns : (int, int)
         Entries of ``features.features`` the caption shows, by name (the feature mode's
         columns, :func:`qdcnn.vision.grouping.mode_columns`).
+    camera : CameraGeometry, optional
+        What ``--lanes auto`` chose for the recording: its horizon (dashed magenta), its
+        vanishing point (a magenta cross) and the hood's top (thin magenta), and a caption
+        line saying whether the horizon was estimated or the preset's.
 
     Returns
     -------
@@ -94,9 +102,11 @@ def draw_lane_overlay(
     if features.method == "image-split":
         xc = 0.5 * (w - 1)
         _dashed(canvas, pt(xc, y_top), pt(xc, y_bottom), MIDDLE_COLOUR, thin, 4 * scale)
+    if camera is not None:
+        _draw_camera(canvas, camera, (h, w), pt, thin, scale)
 
     for (x1, y1, x2, y2), group in zip(seg, features.labels, strict=True):
-        colour = GROUP_COLOURS[int(group) % 2]
+        colour = GROUP_COLOURS[int(group)] if group in (0, 1) else LEFT_OUT_COLOUR
         cv2.line(canvas, pt(x1, y1), pt(x2, y2), colour, thick, cv2.LINE_AA)
 
     def draw_fit(line: tuple[float, float] | None, colour: tuple[int, int, int]) -> None:
@@ -127,7 +137,11 @@ def draw_lane_overlay(
     )
     font_scale = 0.33 * scale
     thickness = max(1, scale // 2)
-    for text, row in ((f"{features.method} {features.status}", 10), (inputs, 20)):
+    captions = [(f"{features.method} {features.status}", 10), (inputs, 20)]
+    if camera is not None:
+        origin = "estimated" if camera.source == "estimated" else "preset"
+        captions.append((f"horizon {camera.horizon:.0%} ({origin})", h - 4))
+    for text, row in captions:
         # long feature names shrink to the frame's width rather than run off it
         width = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font_scale, thickness)[0][0]
         fit = min(font_scale, font_scale * (canvas.shape[1] - 6 * scale) / max(width, 1))
@@ -153,6 +167,27 @@ def draw_lane_overlay(
             cv2.LINE_AA,
         )
     return canvas
+
+
+def _draw_camera(
+    canvas: NDArray[np.uint8],
+    camera: CameraGeometry,
+    shape: tuple[int, int],
+    pt: Callable[[float, float], tuple[int, int]],
+    thin: int,
+    scale: int,
+) -> None:
+    h, w = shape
+    y = camera.horizon * (h - 1)
+    _dashed(canvas, pt(0, y), pt(w - 1, y), CAMERA_COLOUR, thin, 6 * scale)
+    xv, yv = camera.vanishing_point[0] * (w - 1), camera.vanishing_point[1] * (h - 1)
+    arm = max(3.0, 0.02 * w)
+    cv2.line(canvas, pt(xv - arm, yv), pt(xv + arm, yv), CAMERA_COLOUR, 2 * thin, cv2.LINE_AA)
+    cv2.line(canvas, pt(xv, yv - arm), pt(xv, yv + arm), CAMERA_COLOUR, 2 * thin, cv2.LINE_AA)
+    if camera.hood_rows is not None:
+        xs = np.linspace(0, w - 1, len(camera.hood_rows))
+        pts = np.array([pt(x, r * (h - 1)) for x, r in zip(xs, camera.hood_rows, strict=True)])
+        cv2.polylines(canvas, [pts.astype(np.int32)], False, CAMERA_COLOUR, thin, cv2.LINE_AA)
 
 
 def draw_shadow_overlay(
