@@ -177,6 +177,10 @@ class LaneConfig:
         vanishing point's row and its line crosses that row within this fraction of the
         width of the vanishing point (a lane border points at it; tree and car outlines
         mostly do not). ``None`` (the paper) keeps every segment.
+    camera : {"fixed", "auto"}
+        ``"fixed"`` uses ``roi`` as it is; ``"auto"`` (``--lanes auto``) replaces ``roi``
+        and ``vanishing_point`` per recording by those estimated from its frames
+        (:func:`qdcnn.pipeline.auto_lanes`).
     """
 
     ROI_PRESETS: ClassVar[dict[str, tuple[tuple[float, float], ...]]] = {
@@ -237,6 +241,7 @@ class LaneConfig:
     marks_width: float = 0.05
     vanishing_point: tuple[float, float] | None = None
     vp_tolerance: float | None = None
+    camera: Literal["fixed", "auto"] = "fixed"
 
     def __post_init__(self) -> None:
         for name in ("median_ksize", "blur_ksize"):
@@ -300,6 +305,8 @@ class LaneConfig:
                 raise ParameterError(
                     "lanes.vanishing_point", vp, "None or (x, y) relative to the frame size"
                 )
+        if self.camera not in ("fixed", "auto"):
+            raise ParameterError("lanes.camera", self.camera, "'fixed' or 'auto'")
         if self.vp_tolerance is not None:
             _check_range("lanes.vp_tolerance", self.vp_tolerance, 0.0, 10.0)
             if self.vanishing_point is None:
@@ -354,15 +361,31 @@ class LaneConfig:
         }
         return cls(**{**base, **changes})
 
-    #: named lane presets (``--lanes``); "auto" starts from "dashcam" (vision.camera)
-    PRESETS: ClassVar[tuple[str, ...]] = ("udacity", "paper", "dashcam")
+    @classmethod
+    def auto(cls, **changes: Any) -> LaneConfig:
+        """:meth:`dashcam` whose ROI and vanishing point are estimated per recording.
+
+        ``camera="auto"``: before a recording's features are computed, its horizon,
+        vanishing point and static hood are estimated from a sample of its frames
+        (:func:`qdcnn.pipeline.auto_lanes`); without a usable horizon the dashcam preset
+        stays, with a note.
+        """
+        return cls.dashcam(**{"camera": "auto", **changes})
+
+    #: named lane presets (``--lanes``)
+    PRESETS: ClassVar[tuple[str, ...]] = ("udacity", "paper", "dashcam", "auto")
 
     @classmethod
     def preset(cls, name: str, **changes: Any) -> LaneConfig:
         """The lane preset called ``name`` (one of :attr:`PRESETS`), with ``changes``."""
         if name not in cls.PRESETS:
             raise ParameterError("lanes", name, "one of " + ", ".join(map(repr, cls.PRESETS)))
-        factory = {"udacity": cls.udacity, "paper": cls.paper, "dashcam": cls.dashcam}[name]
+        factory = {
+            "udacity": cls.udacity,
+            "paper": cls.paper,
+            "dashcam": cls.dashcam,
+            "auto": cls.auto,
+        }[name]
         return factory(**changes)
 
 
@@ -587,6 +610,8 @@ class PipelineConfig:
     PRESETS: ClassVar[dict[str, str]] = {
         "udacity": "the paper's settings with 1 smoothing pass (works on 320x160 recordings)",
         "paper": "the paper's literal settings (30 smoothing passes)",
+        "dashcam": "a windscreen camera without a hood: trapezoid ROI, settings scaled to 320 px",
+        "auto": "dashcam, with the ROI estimated per recording (horizon, vanishing point, hood)",
     }
 
     def __post_init__(self) -> None:
@@ -607,8 +632,7 @@ class PipelineConfig:
         """The named preset ``name`` (one of :attr:`PRESETS`)."""
         if name not in cls.PRESETS:
             raise ParameterError("lanes", name, "one of " + ", ".join(map(repr, cls.PRESETS)))
-        builder = cls.paper if name == "paper" else cls.udacity
-        return builder(**changes)
+        return cls(lanes=LaneConfig.preset(name), **changes)
 
     def with_lane_options(
         self, *, features: str = "slopes", edges: str = "grey", shadow_removal: bool = True
@@ -623,6 +647,36 @@ class PipelineConfig:
         channels: Literal["grey", "rgb"] = "rgb" if edges == "rgb" else "grey"
         lanes = replace(self.lanes, edge_channels=channels, remove_shadows=bool(shadow_removal))
         return replace(self, lanes=lanes, grouping=GroupingConfig.for_features(features))
+
+    def with_lane_evidence(
+        self,
+        *,
+        marks: str = "none",
+        segment_angles: tuple[float, float] | None = None,
+        vp_tolerance: float | None = None,
+        inner_lines: bool = False,
+        track: str = "none",
+    ) -> PipelineConfig:
+        """This config with the lane-evidence options (not the paper's; the defaults keep it).
+
+        ``marks`` picks white and yellow markings before Canny (``"lab"``, ``"hls"``),
+        ``segment_angles`` keeps Hough segments between two angles from the horizontal,
+        ``vp_tolerance`` keeps segments that point at the vanishing point, ``inner_lines``
+        keeps each side's innermost line, ``track`` smooths lines across frames
+        (``"ema"``, ``"kalman"``).
+        """
+        lo, hi = (self.lanes.min_segment_angle, self.lanes.max_segment_angle)
+        if segment_angles is not None:
+            lo, hi = segment_angles
+        lanes = replace(
+            self.lanes,
+            marks=marks,  # type: ignore[arg-type]
+            min_segment_angle=lo,
+            max_segment_angle=hi,
+            vp_tolerance=vp_tolerance,
+        )
+        grouping = replace(self.grouping, inner_lines=bool(inner_lines), track=track)  # type: ignore[arg-type]
+        return replace(self, lanes=lanes, grouping=grouping)
 
     def with_labels(
         self, *, steering_unit: str = "auto", threshold: float | None = None

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -249,3 +250,23 @@ def test_two_processes_writing_one_key_never_crash_or_corrupt(tmp_path: Path) ->
     assert read_entry(path, ("image-split", "kmeans", "spectral"), 2000, 2) is not None
     with zipfile.ZipFile(path) as archive:
         assert archive.testzip() is None
+
+
+def test_auto_lanes_estimate_the_camera_and_say_what_they_chose(tmp_path, monkeypatch) -> None:
+    from qdcnn.config import LaneConfig, PipelineConfig
+    from qdcnn.data.frames import load_frameset
+    from qdcnn.experiments.features import compute_features
+
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    frames = load_frameset("synthetic:dashcam:60", seed=2)
+    cfg = PipelineConfig(lanes=LaneConfig.auto())
+    table = compute_features(frames, cfg, ("image-split",))
+    assert table.camera is not None and "horizon" in str(table.camera)
+    assert table.readable.all()
+    again = compute_features(frames, cfg, ("image-split",))
+    assert again.cached and again.camera == table.camera
+    tracked = replace(cfg, grouping=replace(cfg.grouping, track="ema"))
+    smooth = compute_features(frames, tracked, ("image-split",))
+    assert not np.array_equal(
+        smooth.features["image-split"], table.features["image-split"], equal_nan=True
+    )

@@ -206,8 +206,10 @@ def test_presets_are_the_papers_literal_settings_and_the_dashcam_camera() -> Non
     dashcam = LaneConfig.dashcam()
     assert dashcam.roi == LaneConfig.ROI_PRESETS["dashcam"] and dashcam.work_width == 320
     assert LaneConfig.preset("udacity") == LaneConfig.udacity()
-    with pytest.raises(ParameterError, match=r"^lanes='auto' is invalid"):
-        LaneConfig.preset("auto")
+    auto = LaneConfig.preset("auto")
+    assert auto.camera == "auto" and auto.roi == LaneConfig.dashcam().roi
+    with pytest.raises(ParameterError, match=r"^lanes='fisheye' is invalid"):
+        LaneConfig.preset("fisheye")
     # today's defaults are untouched by the new fields
     assert LaneConfig() == LaneConfig(max_segment_angle=90.0, work_width=None, marks="none")
 

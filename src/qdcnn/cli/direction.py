@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -25,8 +26,20 @@ InnerOpt = Annotated[
     int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
 ]
 LanesOpt = Annotated[
-    str, typer.Option(help="Lane settings: udacity (1 smoothing pass) | paper (30).")
+    str,
+    typer.Option(
+        help="Lane settings: udacity (1 smoothing pass) | paper (30, the paper's ROI) | dashcam"
+        " | auto (ROI estimated per recording)."
+    ),
 ]
+MarksOpt = Annotated[
+    str, typer.Option(help="Lane-mark evidence before Canny: none (the paper) | lab | hls.")
+]
+AnglesOpt = Annotated[
+    str | None, typer.Option(help="Keep Hough segments between MIN,MAX degrees from horizontal.")
+]
+InnerOpt2 = Annotated[bool, typer.Option(help="Keep each side's innermost line.")]
+TrackOpt = Annotated[str, typer.Option(help="Track lines across frames: none | ema | kalman.")]
 EpochsOpt = Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 25).")]
 WeightsOpt = Annotated[
     Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
@@ -69,6 +82,30 @@ ThresholdOpt = Annotated[
 ]
 
 
+@dataclass(frozen=True)
+class LaneEvidence:
+    """The lane-evidence options of the command line (see PipelineConfig.with_lane_evidence)."""
+
+    marks: str = "none"
+    segment_angles: str | None = None
+    inner_lines: bool = False
+    track: str = "none"
+
+    def apply(self, config: PipelineConfig) -> PipelineConfig:
+        angles = None
+        if self.segment_angles is not None:
+            try:
+                lo, hi = (float(v) for v in self.segment_angles.split(","))
+            except ValueError:
+                raise ParameterError(
+                    "segment-angles", self.segment_angles, "MIN,MAX in degrees, e.g. 20,80"
+                ) from None
+            angles = (lo, hi)
+        return config.with_lane_evidence(
+            marks=self.marks, segment_angles=angles, inner_lines=self.inner_lines, track=self.track
+        )
+
+
 def pipeline_config(
     lanes: str,
     seed: int,
@@ -77,12 +114,12 @@ def pipeline_config(
     shadow_removal: bool,
     steering_unit: str = "auto",
     label_threshold: float | None = None,
+    evidence: LaneEvidence | None = None,
 ) -> PipelineConfig:
     """The config of the lane and label options shared by ``evaluate`` and ``train-direction``."""
-    if lanes not in ("udacity", "paper"):
-        raise ParameterError("lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)")
     base = PipelineConfig.preset(lanes, seed=seed)
     base = base.with_labels(steering_unit=steering_unit, threshold=label_threshold)
+    base = (evidence or LaneEvidence()).apply(base)
     return base.with_lane_options(features=features, edges=edges, shadow_removal=shadow_removal)
 
 
@@ -117,13 +154,18 @@ def evaluate_cmd(
     context: ContextOpt = 1,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
+    marks: MarksOpt = "none",
+    segment_angles: AnglesOpt = None,
+    inner_lines: InnerOpt2 = False,
+    track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     try:
+        evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
         config = pipeline_config(
-            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold
+            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
         )
         spec = EvaluationSpec(
             data,
@@ -194,6 +236,10 @@ def train_direction_cmd(
     context: ContextOpt = 1,
     steering_unit: UnitOpt = "auto",
     label_threshold: ThresholdOpt = None,
+    marks: MarksOpt = "none",
+    segment_angles: AnglesOpt = None,
+    inner_lines: InnerOpt2 = False,
+    track: TrackOpt = "none",
     as_json: JsonOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it.
@@ -201,8 +247,9 @@ def train_direction_cmd(
     Hyperparameters are chosen by the inner contiguous cross-validation evaluate uses.
     """
     try:
+        evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
         config = pipeline_config(
-            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold
+            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
         )
         spec = TrainDirectionSpec(
             data,

@@ -11,6 +11,7 @@ from rich.table import Table
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
 from qdcnn.cli.direction import (
     EpochsOpt,
+    LanesOpt,
     SchedulerOpt,
     ThreadsOpt,
     ThresholdOpt,
@@ -65,9 +66,6 @@ GapOpt = Annotated[
     int, typer.Option(help="Frames left out of training on each side of a test block.")
 ]
 InnerOpt = Annotated[int, typer.Option(help="Inner folds choosing hyperparameters (0: none).")]
-LanesOpt = Annotated[
-    str, typer.Option(help="Lane settings: udacity (1 smoothing pass) | paper (30).")
-]
 ShadowSetOpt = Annotated[
     Path | None,
     typer.Option(

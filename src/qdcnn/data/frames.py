@@ -22,8 +22,8 @@ from qdcnn.data.labels import DirectionLabels, SteeringUnit, label_directions
 from qdcnn.errors import InputError, ParameterError
 
 DEFAULT_SYNTHETIC_FRAMES = 600
-#: Most synthetic frames a dataset spec renders into memory (about 1.5 GB at 320x160).
-MAX_SYNTHETIC_FRAMES = 10_000
+#: Most bytes of frames a synthetic dataset spec renders into memory (10,000 320x160 frames).
+MAX_SYNTHETIC_BYTES = 10_000 * 320 * 160 * 3
 
 
 @dataclass
@@ -112,8 +112,9 @@ def parse_spec(spec: str) -> tuple[str, str]:
 def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> FrameSet:
     """Load a dataset from its specification.
 
-    ``synthetic:PRESET[:N]`` renders a recording-like drive of ``N`` frames
-    (default 600, at most :data:`MAX_SYNTHETIC_FRAMES`, held in memory) with
+    ``synthetic:PRESET[:N]`` renders a recording-like drive of ``N`` frames at the
+    preset's natural size (320x160; 640x480 for ``dashcam``; default 600 frames, at most
+    :data:`MAX_SYNTHETIC_BYTES` of them, held in memory) with
     :func:`qdcnn.data.synthetic.generate_drive`; its steering is in [-1, 1]. Recordings
     are read lazily; ``steering_unit`` says the unit of their steering (``"auto"``:
     decided from the recording, :func:`qdcnn.data.labels.infer_steering_unit`).
@@ -121,6 +122,7 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
     kind, value = parse_spec(spec)
     if kind == "synthetic":
         from qdcnn.data.synthetic import PRESETS, generate_drive
+        from qdcnn.data.synthetic_world import STYLES
 
         preset, _, count = value.partition(":")
         if preset not in PRESETS:
@@ -129,15 +131,17 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
             n = int(count) if count else DEFAULT_SYNTHETIC_FRAMES
         except ValueError:
             raise ParameterError("data", spec, "synthetic:PRESET[:N] with an integer N") from None
-        if not 10 <= n <= MAX_SYNTHETIC_FRAMES:
+        width, height = STYLES[preset].size  # the preset's natural frame size
+        most = MAX_SYNTHETIC_BYTES // (width * height * 3)
+        if not 10 <= n <= most:
             raise ParameterError(
                 "data",
                 spec,
-                f"between 10 and {MAX_SYNTHETIC_FRAMES} synthetic frames (they are held in "
-                "memory; for longer drives write them with 'qdcnn synth --n N --out DIR' and "
-                "use udacity:DIR/udacity)",
+                f"between 10 and {most} synthetic {preset} frames (they are held in memory; "
+                "for longer drives write them with 'qdcnn synth --n N --out DIR' and use "
+                "udacity:DIR/udacity)",
             )
-        scenes = generate_drive(preset, n, seed=seed)
+        scenes = generate_drive(preset, n, seed=seed, width=width, height=height)
         times = np.arange(n) / 10.0
         return FrameSet(
             f"synthetic-{preset}",

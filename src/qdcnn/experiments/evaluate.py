@@ -205,6 +205,7 @@ class EvaluationResult:
     failures: list[Failure] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     labels: dict[str, Any] = field(default_factory=dict)
+    camera: dict[str, Any] | None = None
 
     @property
     def exit_code(self) -> int:
@@ -220,6 +221,7 @@ class EvaluationResult:
             "failures": [f.to_dict() for f in self.failures],
             "notes": self.notes,
             "labels": self.labels,
+            "camera": self.camera,
         }
 
 
@@ -279,6 +281,11 @@ def _evaluate_all(
     if lane_methods:
         lanes = _lane_data(spec, frames, lane_methods, report)
         _add_failures(result, lanes.table.failures, report)
+        if lanes.table.camera is not None:
+            result.camera = lanes.table.camera
+            report.note(f"{frames.name}: {lanes.table.camera['description']}")
+            for note in lanes.table.camera["notes"]:
+                report.note(f"{frames.name}: {note}")
         for m in lane_methods:
             res = _evaluate_lane_method(spec, m, lanes, executor)
             res.extra["labels"] = result.labels

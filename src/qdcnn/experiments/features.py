@@ -14,10 +14,11 @@ import hashlib
 import json
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +58,7 @@ class FeatureTable:
     failures: list[Failure] = field(default_factory=list)
     seconds_per_frame: float = float("nan")
     cached: bool = False
+    camera: dict[str, Any] | None = None
 
     def frames_without_lines(self, grouping: str) -> int:
         """Readable frames where fewer than two lines were found."""
@@ -125,38 +127,98 @@ def compute_features(
     n = len(frames)
     width = len(feature_names(cfg.grouping.extra_features))
     cached = _load(path, groupings, n, width) if use_cache else None
+    run_cfg, camera = _camera_config(frames, cfg)
     if cached is not None:
+        cached.camera = _camera_summary(camera)
         return cached
     feats = {g: np.full((n, width), np.nan) for g in groupings}
     status = {g: np.full(n, "unreadable", dtype="<U10") for g in groupings}
     readable = np.zeros(n, bool)
-    rng = as_generator(cfg.seed)
-    elapsed = 0.0
-
-    def work(i: int) -> FrameResult:
-        nonlocal elapsed
-        image = frames.image(i)
-        t0 = time.perf_counter()
-        result = process_frame(image, cfg, groupings, rng=rng)
-        elapsed += time.perf_counter() - t0
-        return result
-
     failures: list[Failure] = []
-    for outcome in run_batch(range(n), work, name=lambda i: frames.sources[i]):
-        i = outcome.item
-        if outcome.result is not None:
-            readable[i] = True
-            for g, lane in outcome.result.lanes.items():
-                feats[g][i] = lane.features
-                status[g][i] = lane.status
-        elif outcome.failure is not None:
-            failures.append(outcome.failure)
+    elapsed = 0.0
+    for i, result, seconds in _frame_results(frames, run_cfg, groupings, camera, failures):
+        readable[i] = True
+        elapsed += seconds
+        for g, lane in result.lanes.items():
+            feats[g][i] = lane.features
+            status[g][i] = lane.status
         if on_frame:
             on_frame(i)
     table = FeatureTable(feats, status, readable, failures, elapsed / max(int(readable.sum()), 1))
+    table.camera = _camera_summary(camera)
     if use_cache:
         _save(path, table, groupings)
     return table
+
+
+def _camera_summary(camera: Any) -> dict[str, Any] | None:
+    """What ``--lanes auto`` chose: the geometry, its one-line description and notes."""
+    if camera is None:
+        return None
+    return {**camera.to_dict(), "description": camera.describe()}
+
+
+def _camera_config(frames: FrameSet, config: PipelineConfig) -> tuple[PipelineConfig, Any]:
+    """``config`` with the ROI estimated from ``frames`` when ``lanes.camera == "auto"``."""
+    if config.lanes.camera != "auto":
+        return config, None
+    from qdcnn.pipeline import auto_lanes, recording_sample
+
+    sample = []
+    for outcome in run_batch(recording_sample(len(frames)), frames.image):
+        if outcome.result is not None:
+            sample.append(outcome.result)
+    if not sample:
+        return config, None
+    return auto_lanes(sample, config)
+
+
+def _frame_results(
+    frames: FrameSet,
+    config: PipelineConfig,
+    groupings: Sequence[str],
+    camera: Any,
+    failures: list[Failure],
+) -> Iterator[tuple[int, FrameResult, float]]:
+    """``(index, result, seconds)`` of every readable frame, in order; failures collected.
+
+    Without tracking or an estimated camera each frame is independent
+    (:func:`qdcnn.pipeline.process_frame`); otherwise the frames go through
+    :func:`qdcnn.pipeline.process_recording`, which tracks lines across frames and
+    falls back to the preset for frames of another size.
+    """
+    from qdcnn.pipeline import process_recording
+
+    rng = as_generator(config.seed)
+    order: list[int] = []
+    reading = [0.0]  # seconds spent reading the frame last yielded (excluded from the times)
+
+    def images() -> Iterator[NDArray[np.uint8]]:
+        t0 = time.perf_counter()
+        for outcome in run_batch(
+            range(len(frames)), frames.image, name=lambda i: frames.sources[i]
+        ):
+            if outcome.result is not None:
+                order.append(outcome.item)
+                reading[0] = time.perf_counter() - t0
+                yield outcome.result
+            elif outcome.failure is not None:
+                failures.append(outcome.failure)
+            t0 = time.perf_counter()
+
+    if config.grouping.track == "none" and camera is None:
+        results: Iterator[FrameResult] = (
+            process_frame(image, config, groupings, rng=rng) for image in images()
+        )
+    else:
+        results = process_recording(images(), config, groupings, camera=camera, rng=rng)
+    while True:
+        t0 = time.perf_counter()
+        try:
+            result = next(results)
+        except StopIteration:
+            return
+        yield order[-1], result, time.perf_counter() - t0 - reading[0]
 
 
 def _save(path: Path, table: FeatureTable, groupings: Sequence[str]) -> None:
