@@ -9,10 +9,13 @@ unusable input.
 from __future__ import annotations
 
 import sys
+from typing import Any
 
+import click
 import typer
+from typer.core import TyperGroup
 
-from qdcnn.cli._common import report_error
+from qdcnn.cli._common import ABORTS, NO_ARGS, USAGE_ERRORS, report_error
 from qdcnn.cli.bench import bench_app
 from qdcnn.cli.data import synth_cmd
 from qdcnn.cli.direction import detect_lanes_cmd, evaluate_cmd, train_direction_cmd
@@ -24,7 +27,39 @@ from qdcnn.errors import QdcnnError
 
 __all__ = ["app", "main"]
 
+
+class OneLineErrors(TyperGroup):
+    """The command group, with usage errors (a bad option value, a missing option) as one
+    ``error:`` line on stderr and exit status 2, like every other error of qdcnn."""
+
+    def main(  # type: ignore[override]
+        self,
+        args: Any = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        **extra: Any,
+    ) -> Any:
+        try:
+            code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except NO_ARGS as exc:  # ``qdcnn`` alone: the help
+            context = getattr(exc, "ctx", None)
+            click.echo(context.get_help() if context is not None else str(exc))
+            code = 0
+        except USAGE_ERRORS as exc:
+            report_error(getattr(exc, "format_message", exc.__str__)())
+            code = int(getattr(exc, "exit_code", 2))
+        except ABORTS:
+            report_error("aborted")
+            code = 1
+        code = code if isinstance(code, int) else 0
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
 app = typer.Typer(
+    cls=OneLineErrors,
     name="qdcnn",
     help="QDCNN: UU-dagger shadow detection, quantum lane-direction classifiers, noise studies.",
     no_args_is_help=True,

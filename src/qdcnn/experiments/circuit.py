@@ -46,6 +46,10 @@ QASM_UNCHECKED_NOTE = (
 )
 
 
+#: Largest angle accepted in radians (beyond it the circuit drawer cannot print the angle).
+MAX_ANGLE = 1e6
+
+
 def parse_angle(text: str, name: str) -> float:
     """An angle in radians: a number, or a multiple of pi (``pi/2``, ``-3pi/4``, ``2*pi``).
 
@@ -66,8 +70,8 @@ def parse_angle(text: str, name: str) -> float:
             if den == 0:
                 raise ParameterError(name, text, "a non-zero denominator") from None
             value /= den
-    if not math.isfinite(value):
-        raise ParameterError(name, text, "a finite angle")
+    if not math.isfinite(value) or abs(value) > MAX_ANGLE:
+        raise ParameterError(name, text, f"a finite angle of at most {MAX_ANGLE:g} radians")
     return value
 
 

@@ -677,9 +677,12 @@ class RunOptions:
     encoder: str = "auto"
 
     def __post_init__(self) -> None:
-        from qdcnn._validation import check_bool, check_int
+        from qdcnn._validation import check_bool, check_float, check_int
 
         check_int("chunk_frames", self.chunk_frames, 1, 1_000_000)
+        check_float("wait", self.wait, 0.0, 86_400.0)
+        if self.overlay_fps is not None:
+            check_float("overlay_fps", self.overlay_fps, 0.0, 1000.0, open_lo=True)
         check_int("smooth", self.smooth, 1, 1001)
         check_bool("overlay", self.overlay)
         check_bool("force", self.force)
