@@ -290,35 +290,33 @@ TWIN_SUFFIX = "-classical"
 
 
 def with_head(names: str, head: str) -> str:
-    """``names`` (a comma list) with each hybrid replaced by its ``head`` variant.
+    """``names`` (a comma list) with the hybrids given the ``head`` asked for.
 
-    ``head`` is ``"quantum"`` (the names as given), ``"classical"`` (each hybrid's
-    classical twin) or ``"both"``; other methods pass through.
+    ``head`` is ``"quantum"`` (the names as given, twins included), ``"classical"`` (each
+    hybrid replaced by its classical twin) or ``"both"`` (each hybrid and its twin);
+    other methods pass through.
 
     Examples
     --------
     >>> with_head("qdcnn-head,dnn-pilotnet", "both")
     'qdcnn-head,qdcnn-head-classical,dnn-pilotnet'
+    >>> with_head("qdcnn-head-classical", "quantum")
+    'qdcnn-head-classical'
     """
     if head not in ("quantum", "classical", "both"):
         raise ParameterError("head", head, "'quantum', 'classical' or 'both'")
     out: list[str] = []
     for name in (n.strip() for n in names.split(",") if n.strip()):
         base = name.removesuffix(TWIN_SUFFIX)
-        if base not in HYBRIDS:
+        if head == "quantum" or base not in HYBRIDS:
             out.append(name)
             continue
-        if head in ("quantum", "both"):
+        if head == "both":
             out.append(base)
-        if head in ("classical", "both"):
-            out.append(base + TWIN_SUFFIX)
+        out.append(base + TWIN_SUFFIX)
     return ",".join(dict.fromkeys(out))
 
 
-_CLASSIFIERS: dict[str, tuple[Builder, str]] = {
-    "uu": (build_uu, "the paper's UU-dagger rule on two lane inputs"),
-    "vqc": (build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
-}
 for _kind, (_build, _what) in _CLASSIFIERS.items():
     for _grouping in GROUPINGS:
         register(
