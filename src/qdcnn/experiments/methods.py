@@ -317,6 +317,10 @@ def with_head(names: str, head: str) -> str:
     return ",".join(dict.fromkeys(out))
 
 
+_CLASSIFIERS: dict[str, tuple[Builder, str]] = {
+    "uu": (build_uu, "the paper's UU-dagger rule on two lane inputs"),
+    "vqc": (build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
+}
 for _kind, (_build, _what) in _CLASSIFIERS.items():
     for _grouping in GROUPINGS:
         register(
