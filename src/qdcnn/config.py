@@ -113,7 +113,8 @@ class LaneConfig:
     Attributes
     ----------
     remove_shadows : bool
-        Whether the pipeline replaces shadow pixels before this stage (not used here).
+        Whether :func:`qdcnn.pipeline.process_frame` replaces the UU-dagger shadow pixels
+        inside the ROI by road pixels before this stage (the paper: yes).
     median_ksize, blur_ksize : int
         Odd apertures of the median filter and of the Gaussian blur (paper: 5 and 5).
     blur_sigma : float
@@ -393,10 +394,12 @@ class LaneConfig:
 class GroupingConfig:
     """Grouping of Hough segments into two lines (paper Sec. II-A-3; NOTES 5).
 
+    The grouping itself (image-split, k-means or spectral) is not a setting: every
+    direction method names its own (:mod:`qdcnn.experiments.methods`), and one pass of the
+    pipeline computes the features of several groupings from the same segments.
+
     Attributes
     ----------
-    method : {"image-split", "kmeans", "spectral"}
-        How segments are split into two groups (:mod:`qdcnn.vision.grouping`).
     features : str
         Feature mode: the two columns a 2-input classifier uses (:attr:`FEATURE_MODES`).
         ``"slopes"`` (the paper): the two fitted slopes dx/dy, left line first. The
@@ -452,7 +455,6 @@ class GroupingConfig:
         "near-vanishing-point-offset",
     )
 
-    method: Literal["image-split", "kmeans", "spectral"] = "image-split"
     features: str = "slopes"
     extra_features: tuple[str, ...] = ()
     merge_tolerance: float | None = 0.03
@@ -479,10 +481,6 @@ class GroupingConfig:
         return cls(features=features, extra_features=extras, **changes)
 
     def __post_init__(self) -> None:
-        if self.method not in ("image-split", "kmeans", "spectral"):
-            raise ParameterError(
-                "grouping.method", self.method, "'image-split', 'kmeans' or 'spectral'"
-            )
         if self.features not in self.FEATURE_MODES:
             allowed = ", ".join(map(repr, self.FEATURE_MODES))
             raise ParameterError("grouping.features", self.features, f"one of {allowed}")

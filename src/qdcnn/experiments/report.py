@@ -45,10 +45,6 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _mask_rgb(mask: NDArray[np.bool_]) -> NDArray[np.uint8]:
-    return np.repeat((mask.astype(np.uint8) * 255)[:, :, None], 3, axis=2)
-
-
 def _detector(
     method: str, config: ShadowConfig
 ) -> Callable[[NDArray[np.uint8]], NDArray[np.bool_]]:

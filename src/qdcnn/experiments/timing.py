@@ -30,19 +30,6 @@ class Timing:
         return asdict(self)
 
 
-def time_call(name: str, fn: Callable[[], object], *, repeats: int = 7, warmup: int = 1) -> Timing:
-    """Time ``fn()`` ``repeats`` times after ``warmup`` untimed calls."""
-    for _ in range(warmup):
-        fn()
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - t0)
-    arr = np.asarray(samples)
-    return Timing(name, float(np.median(arr)), float(arr.min()), float(arr.max()), repeats)
-
-
 def time_per_item(
     name: str, fn: Callable[[Any], object], items: list[Any], *, repeats: int = 3
 ) -> Timing:

@@ -298,17 +298,6 @@ def _median_large(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
     return (sums > (ksize * ksize) // 2).astype(np.uint8)
 
 
-def two_means_cluster(values: NDArray[np.float64], pick: str = "lowest") -> NDArray[np.float64]:
-    """Values in the lower (or upper) cluster of the optimal 1-D two-means split.
-
-    For one-dimensional data, Otsu's threshold maximises the between-class
-    variance, which is the global optimum of two-cluster k-means (Otsu 1979;
-    scikit-image's :func:`~skimage.filters.threshold_otsu` computes it), so this
-    is a deterministic k-means clustering that costs microseconds per image.
-    """
-    return extreme_cluster(values, 2, pick)
-
-
 MULTI_OTSU_BINS = 32  # histogram bins of the 3- and 4-class splits (4 classes x 256 bins: ~50 ms)
 
 
@@ -317,7 +306,7 @@ def extreme_cluster(
 ) -> NDArray[np.float64]:
     """Values in the lowest (or highest) class of a 1-D Otsu split into ``classes`` classes.
 
-    Two classes use Otsu's threshold on 256 bins (:func:`two_means_cluster`);
+    Two classes use Otsu's threshold on 256 bins (the optimal 1-D two-means split);
     three or four use the multi-level Otsu thresholds (Liao, Chen & Chung, "A
     fast algorithm for multilevel thresholding", J. Inf. Sci. Eng. 17, 2001;
     :func:`skimage.filters.threshold_multiotsu`) on :data:`MULTI_OTSU_BINS`
