@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence, Sized
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -88,21 +89,24 @@ class _TextSink:
         self._tmp.unlink(missing_ok=True)
 
 
-class SceneSink:
+class SceneSink(ABC):
     """Base of the streaming writers: ``add`` scenes one by one, then ``close``.
 
     Used as a context manager, a sink closes on success and discards its unfinished
     label file on an exception (images already written stay).
     """
 
+    @abstractmethod
     def add(self, scene: RoadScene) -> None:
-        raise NotImplementedError
+        """Write one scene."""
 
+    @abstractmethod
     def close(self) -> Path:
-        raise NotImplementedError
+        """Finish the files and return the main output's path."""
 
     def abort(self) -> None:
         """Stop after an error; the default keeps what was written."""
+        return None
 
     def __enter__(self) -> SceneSink:
         return self
