@@ -20,7 +20,7 @@ from qdcnn.cli.bench import bench_app
 from qdcnn.cli.data import synth_cmd
 from qdcnn.cli.direction import detect_lanes_cmd, evaluate_cmd, train_direction_cmd
 from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd
-from qdcnn.cli.report import demo_cmd
+from qdcnn.cli.report import demo_cmd, reproduce_cmd
 from qdcnn.cli.run import run_cmd
 from qdcnn.cli.shadows import detect_shadows_cmd, score_shadows_cmd, train_shadows_cmd
 from qdcnn.errors import QdcnnError
@@ -78,6 +78,7 @@ app.command("noise-sweep")(noise_sweep_cmd)
 app.command("circuit")(circuit_cmd)
 app.command("run")(run_cmd)
 app.command("demo")(demo_cmd)
+app.command("reproduce")(reproduce_cmd)
 
 
 def main() -> None:

@@ -1,4 +1,4 @@
-"""``demo``: every stage on built-in synthetic scenes, as an HTML report."""
+"""``reproduce`` and ``demo``: the paper's tables and figures, measured, as one HTML report."""
 
 from __future__ import annotations
 
@@ -6,28 +6,121 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.table import Table
 
-from qdcnn.cli._common import JsonOpt, emit, err, fail, out
+from qdcnn.cli._common import CliReporter, JsonOpt, emit, err, fail, out
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.report import run_demo
+from qdcnn.experiments.reproduce import (
+    ReproduceResult,
+    ReproduceSpec,
+    StageReporter,
+    parse_data_option,
+    run_reproduce,
+)
+
+OutOpt = Annotated[Path, typer.Option("--out", help="Folder of index.html, report.json, figures.")]
+ForceOpt = Annotated[bool, typer.Option("--force", help="Overwrite an existing report folder.")]
+ResumeOpt = Annotated[
+    bool, typer.Option("--resume", help="Continue a run in --out, keeping finished sections.")
+]
+SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
 
 
-def demo_cmd(
-    out_dir: Annotated[
-        Path, typer.Option("--out", help="Folder for index.html and figures.")
-    ] = Path("demo-output"),
-    quick: Annotated[bool, typer.Option(help="Fewer scenes and repeats.")] = False,
-    seed: Annotated[int, typer.Option(help="Seed.")] = 0,
-    as_json: JsonOpt = False,
-) -> None:
-    """Run every stage on built-in synthetic scenes and write an HTML report."""
+class _StageLines(CliReporter, StageReporter):
+    """CLI reporter that also prints one line on stderr as each section begins."""
+
+    def stage(self, index: int, total: int, title: str) -> None:
+        err.print(f"[{index}/{total}] {title}", style="dim", markup=False, highlight=False)
+
+
+def _finish(spec: ReproduceSpec, as_json: bool) -> None:
     try:
-        result = run_demo(
-            out_dir, quick=quick, seed=seed, say=lambda m: err.print(m, style="dim", markup=False)
-        )
+        result = run_reproduce(spec, _StageLines(as_json))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
-        emit(result)
+        emit({"summary": True, **result.to_dict()})
     else:
-        out.print(f"report: {result['html']} (numbers in {result['json']})")
+        out.print(_summary(result))
+        out.print(f"report: {result.html} (numbers in {result.json})")
+    raise typer.Exit(result.exit_code)
+
+
+def _summary(result: ReproduceResult) -> Table:
+    table = Table("section", "status", "seconds (measured)", title=f"{result.out}")
+    for s in result.sections:
+        reused = " (reused)" if s.id in result.reused else ""
+        table.add_row(s.title, s.status + reused, f"{s.seconds:.1f}")
+    return table
+
+
+def reproduce_cmd(
+    out_dir: OutOpt = Path("reproduce-output"),
+    data: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--data",
+            help="LABEL=SPEC, LABEL one of track1, track2, carla (repeatable; a label may "
+            "come twice), e.g. track1=udacity:PATH. None: the synthetic presets.",
+        ),
+    ] = None,
+    quick: Annotated[bool, typer.Option(help="The quick profile (a few minutes).")] = False,
+    cnn: Annotated[
+        bool | None,
+        typer.Option("--cnn/--no-cnn", help="Train the CNNs (default: with torch, not quick)."),
+    ] = None,
+    epochs: Annotated[int, typer.Option(help="CNN training epochs (the paper: 25).")] = 25,
+    threads: Annotated[int | None, typer.Option(help="torch CPU threads.")] = None,
+    shadow_set: Annotated[
+        Path | None, typer.Option(help="Shadow set DIR with images/ and masks/.")
+    ] = None,
+    max_frames: Annotated[
+        int | None, typer.Option(help="At most this many frames from each recording's start.")
+    ] = None,
+    synthetic_frames: Annotated[
+        int | None, typer.Option(help="Frames of each synthetic drive.")
+    ] = None,
+    force: ForceOpt = False,
+    resume: ResumeOpt = False,
+    seed: SeedOpt = 0,
+    cache: Annotated[bool, typer.Option(help="Reuse cached lane features.")] = True,
+    as_json: JsonOpt = False,
+) -> None:
+    """Every table and figure of the paper next to the same thing measured on your data."""
+    try:
+        spec = ReproduceSpec(
+            out_dir,
+            [parse_data_option(d) for d in data or []],
+            quick=quick,
+            force=force,
+            resume=resume,
+            seed=seed,
+            cnn=cnn,
+            epochs=epochs,
+            threads=threads,
+            shadow_set=shadow_set,
+            max_frames=max_frames,
+            synthetic_frames=synthetic_frames,
+            use_cache=cache,
+        )
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    _finish(spec, as_json)
+
+
+def demo_cmd(
+    out_dir: OutOpt = Path("demo-output"),
+    quick: Annotated[
+        bool, typer.Option(help="The quick profile (default); --no-quick: the full one.")
+    ] = True,
+    seed: SeedOpt = 0,
+    force: ForceOpt = False,
+    resume: ResumeOpt = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """`reproduce --quick` on the built-in synthetic presets: the whole paper in minutes."""
+    try:
+        spec = ReproduceSpec(out_dir, quick=quick, force=force, resume=resume, seed=seed)
+    except QdcnnError as exc:
+        raise fail(exc) from None
+    _finish(spec, as_json)
