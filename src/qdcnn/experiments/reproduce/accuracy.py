@@ -27,6 +27,7 @@ from qdcnn.experiments.methods import (
     select_methods,
 )
 from qdcnn.experiments.paper_values import COMPARISON, TEXT_DISAGREES, paper_accuracy
+from qdcnn.experiments.protocol import ContiguousKFold, check_training_classes
 from qdcnn.experiments.reproduce.context import DatasetUnavailable, RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
 from qdcnn.experiments.reproduce.spec import DatasetEntry
@@ -110,6 +111,7 @@ def _evaluate_dataset(
 ) -> dict[str, Any]:
     """Every method's result on one dataset; a method that fails gets its error."""
     lanes = ctx.lane_data(entry, "paper")
+    _check_protocol(entry, lanes)
     out: dict[str, Any] = {
         **entry.to_dict(),
         "name": lanes.frames.name,
@@ -152,6 +154,16 @@ def _evaluate_dataset(
     majorities = [r["majority_baseline"] for r in out["results"]["paper"].values()]
     out["majority_baseline"] = majorities[0] if majorities else None
     return out
+
+
+def _check_protocol(entry: DatasetEntry, lanes: LaneData) -> None:
+    """One error for the dataset when the protocol's folds cannot score it (not one per method)."""
+    cv = ContiguousKFold(PROTOCOL["folds"], PROTOCOL["gap"])
+    try:
+        cv.check(int(lanes.y.size))
+        check_training_classes(lanes.y, list(cv.split(lanes.y)))
+    except QdcnnError as exc:
+        raise DatasetUnavailable(entry, f"cannot be scored: {exc}") from None
 
 
 def _frame_result(
