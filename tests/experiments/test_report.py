@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -203,6 +205,28 @@ def test_resume_keeps_finished_sections_and_other_settings_are_refused(tiny, tmp
         run_reproduce(replace(spec, seed=1))
     with pytest.raises(InputError, match="use --force to overwrite it or --resume"):
         run_reproduce(replace(spec, resume=False))
+
+
+@pytest.mark.slow
+def test_readme_tables_print_the_reports_numbers(tiny, tmp_path) -> None:
+    folder, _ = tiny
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "readme_tables.py"
+    run = subprocess.run(
+        [sys.executable, str(script), str(folder / "report.json")], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    res = _section(folder, "table-i")["data"]["datasets"]["track1"]["results"]["paper"]
+    acc = res["image-split-uu"]
+    assert f"| image-split-uu | 0.70 | {acc['accuracy']:.3f} ± {acc['accuracy_std']:.3f} |" in (
+        run.stdout
+    )
+    for heading in ("Table I", "Table II", "Table III", "Table IV", "Fig. 7", "Shadow"):
+        assert f"#### {heading}" in run.stdout
+    assert "| profile (**estimate**, not measured) | seconds per frame |" in run.stdout
+    bad = tmp_path / "x.json"
+    bad.write_text("{}")
+    run = subprocess.run([sys.executable, str(script), str(bad)], capture_output=True, text=True)
+    assert run.returncode == 2 and "not a qdcnn reproduce report.json" in run.stderr
 
 
 def _one_section(monkeypatch: pytest.MonkeyPatch, *defs: SectionDef) -> None:

@@ -54,36 +54,43 @@ def _summary(result: ReproduceResult) -> Table:
     return table
 
 
+DataOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--data",
+        help="LABEL=SPEC, LABEL one of track1, track2, carla (repeatable; a label may come "
+        "twice), e.g. track1=udacity:PATH. None: the synthetic presets.",
+    ),
+]
+QuickOpt = Annotated[bool, typer.Option(help="The quick profile (a few minutes).")]
+CnnOpt = Annotated[
+    bool | None,
+    typer.Option("--cnn/--no-cnn", help="Train the CNNs (default: with torch, not quick)."),
+]
+EpochsOpt = Annotated[int, typer.Option(help="CNN training epochs (the paper: 25).")]
+ThreadsOpt = Annotated[int | None, typer.Option(help="torch CPU threads.")]
+ShadowSetOpt = Annotated[Path | None, typer.Option(help="Shadow set DIR with images/ and masks/.")]
+MaxFramesOpt = Annotated[
+    int | None, typer.Option(help="At most this many frames from each recording's start.")
+]
+SyntheticOpt = Annotated[int | None, typer.Option(help="Frames of each synthetic drive.")]
+CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
+
+
 def reproduce_cmd(
     out_dir: OutOpt = Path("reproduce-output"),
-    data: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--data",
-            help="LABEL=SPEC, LABEL one of track1, track2, carla (repeatable; a label may "
-            "come twice), e.g. track1=udacity:PATH. None: the synthetic presets.",
-        ),
-    ] = None,
-    quick: Annotated[bool, typer.Option(help="The quick profile (a few minutes).")] = False,
-    cnn: Annotated[
-        bool | None,
-        typer.Option("--cnn/--no-cnn", help="Train the CNNs (default: with torch, not quick)."),
-    ] = None,
-    epochs: Annotated[int, typer.Option(help="CNN training epochs (the paper: 25).")] = 25,
-    threads: Annotated[int | None, typer.Option(help="torch CPU threads.")] = None,
-    shadow_set: Annotated[
-        Path | None, typer.Option(help="Shadow set DIR with images/ and masks/.")
-    ] = None,
-    max_frames: Annotated[
-        int | None, typer.Option(help="At most this many frames from each recording's start.")
-    ] = None,
-    synthetic_frames: Annotated[
-        int | None, typer.Option(help="Frames of each synthetic drive.")
-    ] = None,
+    data: DataOpt = None,
+    quick: QuickOpt = False,
+    cnn: CnnOpt = None,
+    epochs: EpochsOpt = 25,
+    threads: ThreadsOpt = None,
+    shadow_set: ShadowSetOpt = None,
+    max_frames: MaxFramesOpt = None,
+    synthetic_frames: SyntheticOpt = None,
     force: ForceOpt = False,
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
-    cache: Annotated[bool, typer.Option(help="Reuse cached lane features.")] = True,
+    cache: CacheOpt = True,
     as_json: JsonOpt = False,
 ) -> None:
     """Every table and figure of the paper next to the same thing measured on your data."""

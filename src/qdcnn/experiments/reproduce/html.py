@@ -129,8 +129,9 @@ def render_page(
     intro: Sequence[str],
     settings: Sequence[tuple[str, str]],
     notes: Sequence[str],
+    details: Sequence[tuple[str, str]] = (),
 ) -> str:
-    """The whole page: title, introduction, contents, settings table, sections."""
+    """The whole page: title, introduction, settings, collapsed details, contents, sections."""
     toc = "".join(
         f'<li><a href="#{html.escape(s.id)}">{inline(s.title)}</a> ({html.escape(s.status)})</li>'
         for s in sections
@@ -138,6 +139,10 @@ def render_page(
     rows = "".join(f"<tr><th>{html.escape(k)}</th><td>{inline(v)}</td></tr>" for k, v in settings)
     intro_html = "".join(f"<p>{inline(p)}</p>" for p in intro)
     notes_html = "".join(f'<p class="note">Note: {inline(n)}</p>' for n in notes)
+    details_html = "".join(
+        f"<details><summary>{inline(summary)}</summary><pre>{html.escape(text)}</pre></details>"
+        for summary, text in details
+    )
     legend = (
         '<p class="legend">Cells: <span style="background:#eef4ff">the paper\'s value</span>'
         '<span style="background:#e6f6e6;font-weight:700">best measured</span>'
@@ -149,7 +154,7 @@ def render_page(
         f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
         f"<h1>{html.escape(title)}</h1>{intro_html}{legend}"
         f'<div class="scroll"><table id="settings"><tbody>{rows}</tbody></table></div>'
-        f"{notes_html}<nav><h2>Contents</h2><ol>{toc}</ol></nav>"
+        f"{details_html}{notes_html}<nav><h2>Contents</h2><ol>{toc}</ol></nav>"
         + "".join(render_section(s) for s in sections)
         + "</body></html>"
     )

@@ -33,7 +33,9 @@ def noise_section(ctx: RunContext, section: Section) -> None:
         "Qiskit Aer NoiseModel does); phase damping is the textbook channel. Accuracy pooled "
         f"over the protocol's {PROTOCOL['folds']} contiguous folds. Groupings: "
         f"{', '.join(groupings)}. Stars and crosses mark the values the paper's text gives "
-        "with their strength; its other statements are quoted under each table."
+        "with their strength; its other statements are quoted under each table. At p = 0 the "
+        "UU† rule here uses exact probabilities, Table I its 1024-shot estimates, so the two "
+        "can differ slightly."
     )
     data: dict[str, Any] = {
         "channels": list(PAPER_CHANNELS),

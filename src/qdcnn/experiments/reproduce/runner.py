@@ -436,6 +436,18 @@ def _page(ctx: RunContext, result: ReproduceResult, sections: list[Section]) -> 
             "only, noise sweeps on the image-split grouping, Table IV at 320x160 only, no CNNs "
             "unless --cnn."
         )
+    details = [
+        (
+            f"full configuration: {mode} pipeline (`PipelineConfig.to_dict()`)",
+            json.dumps(cfg.to_dict(), indent=1, default=_jsonable),
+        )
+        for mode, cfg in ctx.configs.items()
+    ]
     return render_page(
-        sections, title="QDCNN paper, reproduced", intro=intro, settings=settings, notes=notes
+        sections,
+        title="QDCNN paper, reproduced",
+        intro=intro,
+        settings=settings,
+        notes=notes,
+        details=details,
     )
