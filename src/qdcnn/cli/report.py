@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
@@ -31,6 +32,15 @@ class _StageLines(CliReporter, StageReporter):
 
     def stage(self, index: int, total: int, title: str) -> None:
         err.print(f"[{index}/{total}] {title}", style="dim", markup=False, highlight=False)
+
+    def result(self, item: Mapping[str, Any]) -> None:
+        super().result(item)
+        if not self.as_json and "method" in item:
+            line = (
+                f"  {item['dataset']} {item['mode']} pipeline, {item['method']}: "
+                f"{item['accuracy']:.3f} ({item['seconds']:.0f} s)"
+            )
+            err.print(line, style="dim", markup=False, highlight=False)
 
 
 def _finish(spec: ReproduceSpec, as_json: bool) -> None:

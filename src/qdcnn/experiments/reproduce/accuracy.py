@@ -136,6 +136,7 @@ def _evaluate_dataset(
         ctx.reporter.result(
             {"section": section.id, "dataset": entry.key, "mode": mode}
             | {k: result[k] for k in ("method", "accuracy", "accuracy_std", "majority_baseline")}
+            | {"seconds": result["seconds"]}
         )
 
     for m in lane:

@@ -110,14 +110,15 @@ def _direction(
     return out
 
 
-def _extremes(series: list[tuple[float, float]]) -> tuple[str, str, str]:
+def _extremes(series: list[tuple[float, float]], digits: int = 3) -> tuple[str, str, str]:
+    """The value at p = 0, the lowest and the highest (with their p) of one series."""
     p0 = next((a for p, a in series if p == 0.0), None)
     lo = min(series, key=lambda t: t[1])
     hi = max(series, key=lambda t: t[1])
     return (
-        "—" if p0 is None else f"{p0:.3f}",
-        f"{lo[1]:.3f} (p={lo[0]:g})",
-        f"{hi[1]:.3f} (p={hi[0]:g})",
+        "—" if p0 is None else f"{p0:.{digits}f}",
+        f"{lo[1]:.{digits}f} (p={lo[0]:g})",
+        f"{hi[1]:.{digits}f} (p={hi[0]:g})",
     )
 
 
@@ -185,7 +186,7 @@ def _shadow(ctx: RunContext, section: Section, channels: tuple[str, ...]) -> dic
     table: list[list[Cell]] = []
     for channel in channels:
         p, ber = result.series(ns.SHADOW_METHOD, channel, "ber")
-        at0, lo, hi = _extremes(list(zip(p.tolist(), ber.tolist(), strict=True)))
+        at0, lo, hi = _extremes(list(zip(p.tolist(), ber.tolist(), strict=True)), digits=1)
         table.append([channel, cell(at0, "measured"), cell(lo, "measured"), cell(hi, "measured")])
     section.table(
         ["channel", "BER % at p = 0", "lowest", "highest"],
