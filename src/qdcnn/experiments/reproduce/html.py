@@ -34,6 +34,7 @@ th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:left;vertical-align:to
 th{background:#f6f8fa}
 td.paper{background:#eef4ff}td.estimate{background:#fff3e0;font-style:italic}
 td.best{font-weight:700;background:#e6f6e6}td.na{color:#6e7781}td.method{white-space:nowrap}
+td.measured,td.best,td.paper{white-space:nowrap}
 figure{margin:12px 0}img{max-width:100%;height:auto;display:block;border:1px solid #d0d7de}
 figcaption{font-size:.88em;color:#57606a}
 pre{overflow-x:auto;max-width:100%;background:#f6f8fa;padding:8px;font-size:.85em}
