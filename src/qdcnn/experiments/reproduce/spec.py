@@ -72,7 +72,7 @@ def parse_data_option(text: str) -> DatasetEntry:
     Examples
     --------
     >>> parse_data_option("track1=udacity:../shared/data/udacity-lake-track")
-    DatasetEntry(label='track1', spec='udacity:../shared/data/udacity-lake-track')
+    DatasetEntry(label='track1', spec='udacity:../shared/data/udacity-lake-track', index=0)
     """
     label, sep, spec = str(text).partition("=")
     if not sep or not spec.strip():
