@@ -103,7 +103,8 @@ def test_noise_reaches_the_quantum_head_and_only_it(trained) -> None:
     clean = model.estimator.predict_proba(images)
     full = model.estimator.predict_proba(images, noise="depolarizing:1.0")
     # fully depolarised: <Z_i> = 0 for every frame, so every frame gets the same probabilities
-    np.testing.assert_allclose(full, np.broadcast_to(full[0], full.shape), atol=1e-9)
+    # (to float32 rounding, which the read-out gain scales)
+    np.testing.assert_allclose(full, np.broadcast_to(full[0], full.shape), atol=1e-6)
     assert np.abs(full - clean).max() > 1e-3
     np.testing.assert_allclose(model.estimator.predict_proba(images), clean, atol=0)  # restored
     pilot = train_direction_model(

@@ -76,6 +76,35 @@ def test_quantum_head_learns_three_classes() -> None:
     assert float((head(x).argmax(1) == y).float().mean()) > 0.97
 
 
+def _toy_loss_after(head: torch.nn.Module, steps: int) -> float:
+    torch.manual_seed(1)
+    y = torch.arange(150) % 3
+    x = torch.eye(5)[y] * 2 + 0.5 * torch.randn(150, 5)
+    opt = torch.optim.AdamW(head.parameters(), lr=1e-2)
+    for _ in range(steps):
+        opt.zero_grad()
+        loss = torch.nn.functional.cross_entropy(head(x), y)
+        loss.backward()
+        opt.step()
+    return loss.item()
+
+
+@pytest.mark.parametrize("head_cls", [QuantumHead, RingMLPHead])
+def test_readout_gain_lets_bounded_features_reach_confident_logits(head_cls: type) -> None:
+    torch.manual_seed(0)
+    plain = head_cls(5, 4, 2, readout_gain=1.0)
+    torch.manual_seed(0)
+    gained = head_cls(5, 4, 2, readout_gain=10.0)
+    assert _toy_loss_after(gained, 40) < 0.5 * _toy_loss_after(plain, 40)
+
+
+def test_readout_gain_reaches_both_heads_and_is_checked() -> None:
+    for head in ("quantum", "classical"):
+        assert build_hybrid("qdcnn-head", head=head, readout_gain=3.0).head.readout_gain == 3.0
+    with pytest.raises(ParameterError, match="readout_gain=0.0 is invalid"):
+        build_hybrid("qdcnn-head", readout_gain=0.0)
+
+
 @pytest.mark.parametrize("name", list(HYBRIDS))
 def test_gradients_reach_every_layer(name: str) -> None:
     torch.manual_seed(2)

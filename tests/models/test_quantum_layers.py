@@ -89,7 +89,8 @@ def test_head_forward_is_projection_circuit_readout_and_trains() -> None:
     head = _head(4, 2)
     emb = torch.randn(8, 5, dtype=torch.float64)
     angles = math.pi * torch.tanh(head.projection(emb))
-    expected = head.readout(head.circuit.expectations(angles, head.weights.reshape(-1)))
+    z = head.circuit.expectations(angles, head.weights.reshape(-1))
+    expected = head.readout(head.readout_gain * z)
     np.testing.assert_allclose(head(emb).detach().numpy(), expected.detach().numpy())
     assert float(angles.detach().abs().max()) < math.pi
     head(emb).sum().backward()

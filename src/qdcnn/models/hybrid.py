@@ -29,7 +29,13 @@ from qdcnn._optional import require
 from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
 from qdcnn.models.pilotnet import PilotNet
-from qdcnn.models.quantum_layers import QuantumHead, Quanvolution2d, RingMLPHead, UUConv2d
+from qdcnn.models.quantum_layers import (
+    READOUT_GAIN,
+    QuantumHead,
+    Quanvolution2d,
+    RingMLPHead,
+    UUConv2d,
+)
 from qdcnn.quantum.noise import NoiseSpec
 
 require("torch", "the hybrid quantum networks")
@@ -89,17 +95,25 @@ def make_head(
     shots: int | None = None,
     noise: NoiseSpec | None = None,
     num_classes: int = 3,
+    readout_gain: float = READOUT_GAIN,
 ) -> nn.Module:
     """The quantum head, or its classical twin (which takes no shots and no noise)."""
     head = check_choice("head", head, HEADS)
     if head == "quantum":
         return QuantumHead(
-            in_features, n_qubits, n_layers, reupload, shots, noise, num_classes=num_classes
+            in_features,
+            n_qubits,
+            n_layers,
+            reupload,
+            shots,
+            noise,
+            num_classes=num_classes,
+            readout_gain=readout_gain,
         )
     for name, value in (("shots", shots), ("noise", noise), ("reupload", reupload or None)):
         if value is not None:
             raise ParameterError(name, value, "None with the classical head (quantum only)")
-    return RingMLPHead(in_features, n_qubits, n_layers, num_classes)
+    return RingMLPHead(in_features, n_qubits, n_layers, num_classes, readout_gain)
 
 
 class HybridNet(nn.Module):
