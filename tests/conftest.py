@@ -31,6 +31,18 @@ else:
     )
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _session_cache(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    """Feature and model caches in a folder of this session, never the user's ~/.cache."""
+    old = os.environ.get("QDCNN_CACHE")
+    os.environ["QDCNN_CACHE"] = str(tmp_path_factory.mktemp("qdcnn-cache"))
+    yield
+    if old is None:
+        os.environ.pop("QDCNN_CACHE", None)
+    else:
+        os.environ["QDCNN_CACHE"] = old
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)

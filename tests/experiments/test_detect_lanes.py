@@ -42,6 +42,12 @@ def test_every_good_image_gets_a_quoted_row_and_an_overlay(default_model_result)
 
 def test_without_a_model_the_default_is_trained_and_said(default_model_result) -> None:
     *_, result, collected = default_model_result
-    assert result.model.trained_on == "synthetic:track1:300"
-    assert collected.notes == ["no --model: training image-split-uu on synthetic:track1:300"]
-    assert result.to_dict()["model_summary"]["n"] == 300
+    presets = "synthetic:track1:300 + synthetic:track2:300 + synthetic:rain:300"
+    assert result.model.trained_on == presets
+    cv = result.to_dict()["model_summary"]["cross_validation"]
+    assert collected.notes == [
+        f"no --model: the built-in model, image-split-uu trained on {presets}; 5-fold "
+        f"contiguous CV accuracy {cv['accuracy']:.3f} (majority class "
+        f"{cv['majority_baseline']:.3f})"
+    ]
+    assert result.to_dict()["model_summary"]["n"] == 900

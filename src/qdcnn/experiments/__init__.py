@@ -10,11 +10,13 @@ renders them, and Python callers get the same results.
 ``evaluate``           ``qdcnn evaluate``
 ``direction_model``    ``qdcnn train-direction`` and the model file
 ``detect_lanes``       ``qdcnn detect-lanes``
+``default_model``      the built-in direction model (no ``--model``)
 ``shadow_batch``       ``qdcnn detect-shadows``, ``score-shadows``, ``train-shadows``
 ``synth``              ``qdcnn synth``
 ``run``                ``qdcnn run`` (videos, folders, recordings; resumable, Dask)
 ``noise``              ``qdcnn noise-sweep``
 ``circuit``            ``qdcnn circuit``
+``reproduce``          ``qdcnn reproduce`` (and ``qdcnn demo``)
 ``reporting``          the :class:`Reporter` runners report through
 =====================  ============================================================
 """
@@ -37,6 +39,7 @@ __getattr__, __dir__, __all__ = attach(
         "evaluate": ["EvaluationSpec", "run_evaluation", "evaluate_features", "evaluate_frames"],
         "direction_model": ["DirectionModel", "TrainDirectionSpec", "train_direction"],
         "detect_lanes": ["DetectLanesSpec", "detect_lanes"],
+        "default_model": ["default_direction_model", "describe_default_model"],
         "shadow_batch": [
             "ShadowDetectionSpec",
             "run_shadow_detection",
@@ -48,6 +51,7 @@ __getattr__, __dir__, __all__ = attach(
         "run": ["RunSpec", "run"],
         "noise.runner": ["NoiseSweepSpec", "run_noise_sweep"],
         "circuit": ["CircuitSpec", "inspect_circuit"],
+        "reproduce": ["ReproduceSpec", "run_reproduce"],
         "reporting": ["Reporter"],
     },
 )

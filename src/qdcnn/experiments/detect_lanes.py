@@ -21,27 +21,28 @@ from numpy.typing import NDArray
 from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
-from qdcnn.config import PipelineConfig
 from qdcnn.data.images import encode_image, list_images, read_image
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.errors import InputError
-from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
+from qdcnn.experiments.default_model import (
+    DEFAULT_METHOD,
+    DEFAULT_TRAINING_DATA,
+    default_direction_model,
+    describe_default_model,
+)
+from qdcnn.experiments.direction_model import DirectionModel
 from qdcnn.experiments.methods import get_method
 from qdcnn.experiments.reporting import Reporter
 from qdcnn.experiments.resume import ResumableBatch
 from qdcnn.experiments.shadow_batch import note_shared_stems
 
 __all__ = [
-    "DEFAULT_TRAINING_DATA",
     "DetectLanesResult",
     "DetectLanesSpec",
     "LaneRecord",
-    "default_direction_model",
     "detect_lanes",
 ]
 
-#: The synthetic drive a model is trained on when no model file is given.
-DEFAULT_TRAINING_DATA = "synthetic:track1:300"
 CSV_COLUMNS = ("file", "direction", "status", "p_left", "p_straight", "p_right")
 
 
@@ -52,7 +53,7 @@ class DetectLanesSpec:
     paths: tuple[Path, ...]
     out: Path
     model: Path | None = None
-    method: str = "image-split-uu"
+    method: str = DEFAULT_METHOD
     seed: int = 0
     force: bool = False
     wait: float = 0.0
@@ -68,7 +69,7 @@ class DetectLanesSpec:
         from qdcnn.outputs import file_identity
 
         model = None if self.model is None else file_identity(self.model, content_hash=True)
-        default = None if self.model is not None else [self.method, DEFAULT_TRAINING_DATA]
+        default = None if self.model is not None else [self.method, *DEFAULT_TRAINING_DATA]
         return {"model": model, "default_model": default, "seed": self.seed}
 
 
@@ -126,28 +127,14 @@ class DetectLanesResult:
         }
 
 
-def default_direction_model(
-    method: str, seed: int = 0, *, data: str = DEFAULT_TRAINING_DATA
-) -> DirectionModel:
-    """Lane method ``method`` trained on ``data``, for use without a model file."""
-    from qdcnn.experiments.lane_data import load_lane_data
-
-    info = get_method(method)
-    if info.inputs != "lanes" or info.grouping is None:
-        raise InputError(method, "needs a trained model file (--model) for image methods")
-    cfg = PipelineConfig(seed=seed)
-    lanes = load_lane_data(data, cfg, (info.grouping,), seed=seed)
-    return train_direction_model(info, lanes.features(info.grouping), lanes.y, cfg, data)
-
-
 def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> DetectLanesResult:
     """Decide a direction for every image of ``spec``, writing overlays and predictions.csv."""
     report = reporter or Reporter()
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
-        report.note(f"no --model: training {spec.method} on {DEFAULT_TRAINING_DATA}")
         model = default_direction_model(spec.method, spec.seed)
+        report.note(f"no --model: the built-in model, {describe_default_model(model)}")
     listing = list_images(spec.paths)
     if not listing.images and not listing.missing:
         raise InputError(", ".join(map(str, spec.paths)), "no image files found")

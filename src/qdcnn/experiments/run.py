@@ -17,7 +17,11 @@ from typing import Any
 
 from qdcnn._validation import check_seed
 from qdcnn.data.frames import load_frameset, parse_spec
-from qdcnn.experiments.detect_lanes import DEFAULT_TRAINING_DATA, default_direction_model
+from qdcnn.experiments.default_model import (
+    DEFAULT_METHOD,
+    default_direction_model,
+    describe_default_model,
+)
 from qdcnn.experiments.direction_model import DirectionModel
 from qdcnn.experiments.methods import get_method
 from qdcnn.experiments.reporting import Reporter
@@ -39,10 +43,10 @@ class RunSpec:
     out : Path
         Output folder (``<name>/frames.csv``, ``timings.csv``, ``overlay.mp4``, ``summary.json``).
     model : Path or None
-        A direction model file (``train-direction``); ``None`` trains ``method`` on
-        :data:`~qdcnn.experiments.detect_lanes.DEFAULT_TRAINING_DATA`.
+        A direction model file (``train-direction``); ``None``: the built-in model of
+        ``method`` (:func:`~qdcnn.experiments.default_model.default_direction_model`).
     method : str
-        The registered lane method trained when no model is given.
+        The registered lane method of the built-in model, used when no model is given.
     options : RunOptions
         Chunking, ``smooth`` majority vote, overlay, ``force``, lock wait.
     scheduler : str or None
@@ -54,7 +58,7 @@ class RunSpec:
     inputs: tuple[str, ...]
     out: Path
     model: Path | None = None
-    method: str = "image-split-uu"
+    method: str = DEFAULT_METHOD
     options: RunOptions = field(default_factory=RunOptions)
     scheduler: str | None = None
     seed: int = 0
@@ -74,8 +78,8 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
-        report.note(f"no --model: training {spec.method} on {DEFAULT_TRAINING_DATA}")
         model = default_direction_model(spec.method, spec.seed)
+        report.note(f"no --model: the built-in model, {describe_default_model(model)}")
     processor = LaneDirectionProcessor(model, seed=spec.seed)
     with ExitStack() as stack:
         executor = stack.enter_context(Executor(spec.scheduler)) if spec.scheduler else None

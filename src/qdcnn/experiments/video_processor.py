@@ -58,7 +58,7 @@ class LaneDirectionProcessor:
         cls, method: str = "image-split-uu", *, data: str = "synthetic:track1:300", seed: int = 0
     ) -> LaneDirectionProcessor:
         """Fit lane method ``method`` on ``data`` (a dataset spec) with the default settings."""
-        from qdcnn.experiments.detect_lanes import default_direction_model
+        from qdcnn.experiments.default_model import default_direction_model
 
         return cls(default_direction_model(method, seed, data=data), seed=seed)
 

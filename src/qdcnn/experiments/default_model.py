@@ -1,0 +1,129 @@
+"""The built-in direction model used when ``detect-lanes`` or ``run`` get no ``--model``.
+
+It is :data:`DEFAULT_METHOD` trained on :data:`DEFAULT_TRAINING_DATA`, all three
+synthetic presets (clear track1, hilly track2 with shadows, rain). The method is the one
+of the registry's lane methods that generalised best in
+``benchmarks/default_model_study.py``: trained on two presets and tested on the third,
+and trained on all three and tested on the recordings of ``../shared/data``.
+
+The first use trains it (about a minute: 900 synthetic frames through the lane pipeline)
+and scores it with the evaluation protocol (contiguous folds with a gap over the three
+presets in a row); the model file goes to ``$QDCNN_CACHE/models`` (default
+``~/.cache/qdcnn/models``) under a key of the method, the data, the seed, the settings
+and the code, and later uses read it back. A cached file that no longer reads is
+trained again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from qdcnn import __version__
+from qdcnn.config import PipelineConfig
+from qdcnn.errors import InputError
+from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
+from qdcnn.experiments.features import cache_dir, code_fingerprint
+from qdcnn.experiments.methods import DirectionMethod, get_method
+from qdcnn.experiments.protocol import cross_validate, majority_baseline, pooled_accuracy
+
+__all__ = [
+    "DEFAULT_METHOD",
+    "DEFAULT_TRAINING_DATA",
+    "default_direction_model",
+    "default_model_path",
+    "describe_default_model",
+]
+
+#: The lane method of the built-in model (``benchmarks/default_model_study.py``).
+DEFAULT_METHOD = "image-split-uu"
+#: What the built-in model is trained on: 300 frames of each synthetic preset.
+DEFAULT_TRAINING_DATA = ("synthetic:track1:300", "synthetic:track2:300", "synthetic:rain:300")
+#: The protocol that scores it (that of ``qdcnn evaluate``).
+SCORE_FOLDS, SCORE_GAP = 5, 5
+
+
+def default_model_path(
+    method: str = DEFAULT_METHOD,
+    seed: int = 0,
+    data: Sequence[str] = DEFAULT_TRAINING_DATA,
+) -> Path:
+    """Where the cached model of ``method`` trained on ``data`` with ``seed`` lives."""
+    payload = json.dumps(
+        {
+            "method": method,
+            "data": list(data),
+            "seed": seed,
+            "config": PipelineConfig(seed=seed).to_dict(),
+            "version": __version__,
+            "code": code_fingerprint(),
+        },
+        sort_keys=True,
+    )
+    key = hashlib.sha256(payload.encode()).hexdigest()[:20]
+    return cache_dir() / "models" / f"default-{method}-{key}.qdcnn"
+
+
+def default_direction_model(
+    method: str = DEFAULT_METHOD,
+    seed: int = 0,
+    *,
+    data: str | Sequence[str] = DEFAULT_TRAINING_DATA,
+    use_cache: bool = True,
+) -> DirectionModel:
+    """Lane method ``method`` trained on ``data`` (dataset specs), read from the cache if there.
+
+    Raises
+    ------
+    InputError
+        ``method`` is an image method (those need a trained model file).
+    """
+    info = get_method(method)
+    if info.inputs != "lanes" or info.grouping is None:
+        raise InputError(method, "needs a trained model file (--model) for image methods")
+    specs = (data,) if isinstance(data, str) else tuple(data)
+    path = default_model_path(info.name, seed, specs)
+    if use_cache and path.is_file():
+        try:
+            return DirectionModel.load(path)
+        except InputError:
+            pass  # an unreadable cache entry (an interrupted disk, an older format): retrain
+    model = _train_and_score(info, specs, seed)
+    if use_cache:
+        model.save(path)
+    return model
+
+
+def describe_default_model(model: DirectionModel) -> str:
+    """One line: the method, its training data and its protocol score."""
+    cv = model.summary.get("cross_validation", {})
+    score = (
+        f"; {cv['folds']}-fold contiguous CV accuracy {cv['accuracy']:.3f} "
+        f"(majority class {cv['majority_baseline']:.3f})"
+        if cv
+        else ""
+    )
+    return f"{model.method} trained on {model.trained_on}{score}"
+
+
+def _train_and_score(info: DirectionMethod, specs: tuple[str, ...], seed: int) -> DirectionModel:
+    from qdcnn.experiments.lane_data import load_lane_data
+
+    assert info.grouping is not None
+    config = PipelineConfig(seed=seed)
+    parts = [load_lane_data(spec, config, (info.grouping,), seed=seed) for spec in specs]
+    x = np.concatenate([p.features(info.grouping) for p in parts])
+    y = np.concatenate([p.y for p in parts])
+    model = train_direction_model(info, x, y, config, " + ".join(specs))
+    cv = cross_validate(lambda: info.estimator(config), x, y, folds=SCORE_FOLDS, gap=SCORE_GAP)
+    model.summary["cross_validation"] = {
+        "folds": SCORE_FOLDS,
+        "gap": SCORE_GAP,
+        "accuracy": pooled_accuracy(y, cv.splits, cv.predictions),
+        "majority_baseline": majority_baseline(y, cv.splits),
+    }
+    return model

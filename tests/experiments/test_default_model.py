@@ -1,0 +1,77 @@
+"""The built-in direction model: all three presets, scored by the protocol, cached."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qdcnn.errors import InputError
+from qdcnn.experiments.default_model import (
+    DEFAULT_METHOD,
+    default_direction_model,
+    default_model_path,
+)
+from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
+
+SMALL = ("synthetic:track1:100", "synthetic:rain:100")
+
+
+@pytest.fixture
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path))
+    return tmp_path
+
+
+def test_trained_on_every_preset_and_scored_like_evaluate(cache: Path) -> None:
+    model = default_direction_model(DEFAULT_METHOD, 0, data=SMALL)
+    assert model.trained_on == " + ".join(SMALL)
+    assert model.summary["n"] == 200
+    cv = model.summary["cross_validation"]
+    # the score is evaluate's protocol on the presets in a row (a spec of one preset here)
+    one = default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1])
+    ref = run_evaluation(EvaluationSpec(SMALL[0], methods=(DEFAULT_METHOD,)))
+    assert one.summary["cross_validation"]["accuracy"] == pytest.approx(ref.results[0].accuracy)
+    assert 0.0 <= cv["majority_baseline"] <= 1.0 and (cv["folds"], cv["gap"]) == (5, 5)
+
+
+def test_the_second_use_reads_the_cached_file(cache: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    first = default_direction_model(DEFAULT_METHOD, 0, data=SMALL)
+    path = default_model_path(DEFAULT_METHOD, 0, SMALL)
+    assert path.is_file() and path.parent == cache / "models"
+    import qdcnn.experiments.default_model as dm
+
+    def no_training(*_: object) -> None:
+        raise AssertionError("trained again")
+
+    monkeypatch.setattr(dm, "_train_and_score", no_training)
+    again = default_direction_model(DEFAULT_METHOD, 0, data=SMALL)
+    x = np.random.default_rng(0).uniform(-1, 1, (50, 2))
+    np.testing.assert_array_equal(again.predict(x), first.predict(x))
+    assert again.summary == first.summary
+
+
+def test_a_broken_cache_file_is_trained_again(cache: Path) -> None:
+    path = default_model_path(DEFAULT_METHOD, 0, SMALL)
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b"not a model")
+    model = default_direction_model(DEFAULT_METHOD, 0, data=SMALL)
+    assert model.summary["n"] == 200 and path.stat().st_size > 100
+
+
+def test_the_key_follows_method_seed_and_data(cache: Path) -> None:
+    keys = {
+        default_model_path(DEFAULT_METHOD, 0, SMALL),
+        default_model_path("kmeans-uu", 0, SMALL),
+        default_model_path(DEFAULT_METHOD, 1, SMALL),
+        default_model_path(DEFAULT_METHOD, 0, SMALL[:1]),
+    }
+    assert len(keys) == 4
+
+
+def test_no_cache_writes_nothing_and_image_methods_need_a_file(cache: Path) -> None:
+    default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1], use_cache=False)
+    assert not (cache / "models").exists()
+    with pytest.raises(InputError, match="needs a trained model file"):
+        default_direction_model("dnn-pilotnet")
