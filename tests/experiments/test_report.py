@@ -85,7 +85,9 @@ def tiny_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
         mp.setattr("qdcnn.experiments.reproduce.accuracy.has_torch", lambda: False)
         register(TOY)
         try:
-            spec = ReproduceSpec(out / "report", TINY_DATA, cnn=True, custom_profile=TINY)
+            spec = ReproduceSpec(
+                out / "report", TINY_DATA, cnn=True, cnn_methods="all", custom_profile=TINY
+            )
             result = run_reproduce(spec)
         finally:
             unregister(TOY.name)
@@ -187,7 +189,9 @@ def test_resume_keeps_finished_sections_and_other_settings_are_refused(tiny, tmp
     folder = tmp_path / "copy"
     shutil.copytree(shared, folder)  # the shared report stays as it is for the other tests
     before = {sid: _section(folder, sid)["seconds"] for sid in PAGE_ORDER}
-    spec = ReproduceSpec(folder, TINY_DATA, cnn=True, custom_profile=TINY, resume=True)
+    spec = ReproduceSpec(
+        folder, TINY_DATA, cnn=True, cnn_methods="all", custom_profile=TINY, resume=True
+    )
     kept = [sid for sid, status in summary["sections"].items() if status in ("ok", "skipped")]
     calls: list[str] = []
 
@@ -309,3 +313,35 @@ def test_representative_frame_is_the_middle_of_the_longest_run() -> None:
     labels = np.array([0, 0, 1, 1, 1, 1, 1, 0, 2, 2, 1])
     assert [representative(labels, c) for c in (0, 1, 2)] == [0, 4, 8]
     assert representative(np.array([1, 1]), 0) is None
+
+
+@pytest.mark.parametrize(
+    ("chosen", "runs", "note"),
+    [
+        ("paper", ["dnn-pilotnet"], "hybrid methods (qdcnn-head, qdcnn-head-classical"),
+        ("all", ["dnn-pilotnet", "qdcnn-head", "qdcnn-quanv-classical"], "skipping dnn-resnet50"),
+        ("qdcnn-head,qdcnn-head-classical", ["qdcnn-head", "qdcnn-head-classical"], None),
+    ],
+)
+def test_cnn_methods_choose_the_frame_methods(chosen, runs, note, monkeypatch, tmp_path) -> None:
+    from types import SimpleNamespace
+
+    from qdcnn.experiments.reproduce import accuracy
+
+    monkeypatch.setattr(accuracy, "has_torch", lambda: True)
+    monkeypatch.setattr(accuracy, "has_gpu", lambda: False)
+    ctx = SimpleNamespace(spec=ReproduceSpec(tmp_path, cnn=True, cnn_methods=chosen))
+    methods, notes = accuracy.frame_methods(ctx)  # type: ignore[arg-type]
+    names = [m.name for m in methods]
+    assert set(runs) <= set(names) and "dnn-resnet50" not in names
+    if chosen == "paper":
+        assert names == ["dnn-pilotnet"]
+    if note is not None:
+        assert any(n.startswith(note) for n in notes), notes
+
+
+def test_cnn_methods_refuse_lane_methods_and_unknown_names(tmp_path) -> None:
+    with pytest.raises(ParameterError, match="image-split-uu reads lanes"):
+        ReproduceSpec(tmp_path, cnn_methods="image-split-uu")
+    with pytest.raises(ParameterError, match="no-such-net"):
+        ReproduceSpec(tmp_path, cnn_methods="dnn-pilotnet,no-such-net")

@@ -77,6 +77,13 @@ CnnOpt = Annotated[
     bool | None,
     typer.Option("--cnn/--no-cnn", help="Train the CNNs (default: with torch, not quick)."),
 ]
+CnnMethodsOpt = Annotated[
+    str,
+    typer.Option(
+        help="Frame methods: paper (PilotNet; ResNet-50 with a GPU), all (also the hybrids "
+        "and their twins), or a comma list."
+    ),
+]
 EpochsOpt = Annotated[int, typer.Option(help="CNN training epochs (the paper: 25).")]
 ThreadsOpt = Annotated[int | None, typer.Option(help="torch CPU threads.")]
 ShadowSetOpt = Annotated[Path | None, typer.Option(help="Shadow set DIR with images/ and masks/.")]
@@ -92,6 +99,7 @@ def reproduce_cmd(
     data: DataOpt = None,
     quick: QuickOpt = False,
     cnn: CnnOpt = None,
+    cnn_methods: CnnMethodsOpt = "paper",
     epochs: EpochsOpt = 25,
     threads: ThreadsOpt = None,
     shadow_set: ShadowSetOpt = None,
@@ -113,6 +121,7 @@ def reproduce_cmd(
             resume=resume,
             seed=seed,
             cnn=cnn,
+            cnn_methods=cnn_methods,
             epochs=epochs,
             threads=threads,
             shadow_set=shadow_set,

@@ -30,7 +30,7 @@ from qdcnn.experiments.paper_values import COMPARISON, TEXT_DISAGREES, paper_acc
 from qdcnn.experiments.protocol import ContiguousKFold
 from qdcnn.experiments.reproduce.context import DatasetUnavailable, RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
-from qdcnn.experiments.reproduce.spec import DatasetEntry
+from qdcnn.experiments.reproduce.spec import PAPER_CNNS, DatasetEntry
 
 __all__ = ["PROTOCOL", "accuracy_section", "comparison_section"]
 
@@ -52,8 +52,18 @@ def frame_methods(ctx: RunContext) -> tuple[list[DirectionMethod], list[str]]:
         else:
             why = "--quick (ask for them with --cnn)"
         return [], [f"frame methods ({', '.join(names)}) not run: {why}"]
-    methods, notes = select_methods("all", has_torch=has_torch(), has_gpu=has_gpu())
-    return [m for m in methods if m.inputs == "frames"], notes
+    chosen = ctx.spec.cnn_methods
+    methods, notes = select_methods(
+        "all" if chosen in ("paper", "all") else chosen, has_torch=has_torch(), has_gpu=has_gpu()
+    )
+    frames = [m for m in methods if m.inputs == "frames"]
+    if chosen == "paper":
+        left = [m.name for m in frames if m.name not in PAPER_CNNS]
+        frames = [m for m in frames if m.name in PAPER_CNNS]
+        notes = [n for n in notes if any(p in n for p in PAPER_CNNS)]
+        if left:
+            notes.append(f"hybrid methods ({', '.join(left)}) not run: ask with --cnn-methods all")
+    return frames, notes
 
 
 def _recording_method(method: DirectionMethod, sink: list[list[dict[str, Any]]]) -> DirectionMethod:

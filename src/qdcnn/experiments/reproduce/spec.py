@@ -190,6 +190,23 @@ def _entries(
     return tuple(out)
 
 
+#: The frame methods of the paper (``--cnn-methods paper``).
+PAPER_CNNS = ("dnn-pilotnet", "dnn-resnet50")
+
+
+def check_cnn_methods(value: str) -> None:
+    """``paper``, ``all`` or a comma list of registered frame methods."""
+    from qdcnn.experiments.methods import get_method
+
+    if value in ("paper", "all"):
+        return
+    for name in value.split(","):
+        if get_method(name.strip()).inputs != "frames":
+            raise ParameterError(
+                "cnn_methods", value, f"'paper', 'all' or frame methods ({name} reads lanes)"
+            )
+
+
 @dataclass(frozen=True)
 class ReproduceSpec:
     """What :func:`~qdcnn.experiments.reproduce.run_reproduce` runs.
@@ -210,6 +227,9 @@ class ReproduceSpec:
         Seed of every random choice.
     cnn : bool or None
         Run the frame methods (CNNs); ``None``: when torch is installed and not quick.
+    cnn_methods : str
+        Which frame methods run: ``"paper"`` (PilotNet, and ResNet-50 with a GPU),
+        ``"all"`` (also every hybrid and its classical twin) or a comma list of names.
     epochs : int
         CNN training epochs (the paper: 25).
     threads : int or None
@@ -231,6 +251,7 @@ class ReproduceSpec:
     resume: bool = False
     seed: int = 0
     cnn: bool | None = None
+    cnn_methods: str = "paper"
     epochs: int = 25
     threads: int | None = None
     shadow_set: Path | None = None
@@ -243,6 +264,7 @@ class ReproduceSpec:
         object.__setattr__(self, "out", Path(self.out))
         object.__setattr__(self, "data", _entries(self.data))
         check_seed("seed", self.seed)
+        check_cnn_methods(self.cnn_methods)
         check_int("epochs", self.epochs, 1, 10_000)
         if self.threads is not None:
             check_int("threads", self.threads, 1, 1024)
@@ -292,6 +314,7 @@ class ReproduceSpec:
             "quick": self.quick,
             "seed": self.seed,
             "cnn": self.cnn,
+            "cnn_methods": self.cnn_methods,
             "epochs": self.epochs,
             "shadow_set": None if self.shadow_set is None else str(self.shadow_set.resolve()),
             "profile": self.profile.to_dict(),
