@@ -76,6 +76,7 @@ queueing and run-time (see :mod:`qdcnn.quantum.hardware_time` for time estimates
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -342,7 +343,7 @@ def _cx_partners(circuit: CircuitBatch) -> list[set[int]]:
 
 
 class _BudgetSpent(Exception):
-    pass
+    """The placement search ran out of its budget; the best placement so far stands."""
 
 
 #: noisy native one-qubit gates each qdcnn gate becomes (module docstring's table)
@@ -434,10 +435,8 @@ def _search_placement(
             placed.pop()
         return False
 
-    try:
+    with contextlib.suppress(_BudgetSpent):
         place(0, 0.0)
-    except _BudgetSpent:
-        pass
     return best[1]
 
 
