@@ -6,8 +6,9 @@ README's CNN and hybrid rows are this script's output for the files that
 
 wrote (one file per run, or several methods in one file: one JSON object per line).
 Each cell is the pooled accuracy under the contiguous folds +- the spread of the fold
-accuracies, with the measured training-and-test time; the last row is the majority
-class of the training folds. Nothing is recomputed.
+accuracies; the last row is the majority class of the training folds. Nothing is
+recomputed. (Training times are left out: these runs share a busy machine; the epoch
+times of ``benchmarks/bench_hybrid.py`` are the measured ones.)
 
     python benchmarks/evaluate_table.py OUT.json [OUT2.json ...]
 """
@@ -42,11 +43,7 @@ def table(results: list[dict[str, Any]]) -> str:
         row = [m]
         for d in datasets:
             r = cells.get((m, d))
-            row.append(
-                ""
-                if r is None
-                else f"{r['accuracy']:.3f} ± {r['accuracy_std']:.3f} ({r['seconds'] / 60:.0f} min)"
-            )
+            row.append("" if r is None else f"{r['accuracy']:.3f} ± {r['accuracy_std']:.3f}")
         rows.append(row)
     majority = {r["dataset"]: r["majority_baseline"] for r in results}
     rows.append(["majority class of the training folds", *(f"{majority[d]:.3f}" for d in datasets)])
