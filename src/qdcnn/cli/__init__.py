@@ -11,7 +11,6 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-import click
 import typer
 from typer.core import TyperGroup
 
@@ -44,7 +43,7 @@ class OneLineErrors(TyperGroup):
             code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except NO_ARGS as exc:  # ``qdcnn`` alone: the help
             context = getattr(exc, "ctx", None)
-            click.echo(context.get_help() if context is not None else str(exc))
+            typer.echo(context.get_help() if context is not None else str(exc))
             code = 0
         except USAGE_ERRORS as exc:
             report_error(getattr(exc, "format_message", exc.__str__)())

@@ -13,10 +13,8 @@ import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from types import ModuleType
 from typing import Annotated, Any
 
-import click
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -32,18 +30,20 @@ from rich.progress import (
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.reporting import Advance, Failure, Reporter
 
-_typer_click: ModuleType
-try:  # Typer 0.24+ carries its own copy of click
-    from typer._click import exceptions as _typer_click
-except ImportError:  # pragma: no cover - older Typer raises click's own exceptions
-    _typer_click = click.exceptions
+try:  # Typer 0.24+ carries its own copy of click and does not install click
+    from typer import _click as click
+except ImportError:  # pragma: no cover - older Typer depends on click itself
+    import click  # type: ignore[no-redef]
+
 #: What a bad command line raises (a bad option value, a missing or unknown option).
-USAGE_ERRORS: tuple[type[Exception], ...] = (click.exceptions.UsageError, _typer_click.UsageError)
+USAGE_ERRORS: tuple[type[Exception], ...] = (click.exceptions.UsageError,)
 #: Ctrl-C at a prompt.
-ABORTS: tuple[type[BaseException], ...] = (click.exceptions.Abort, typer.Abort)
+ABORTS: tuple[type[BaseException], ...] = tuple(
+    {typer.Abort, getattr(click.exceptions, "Abort", typer.Abort)}
+)
 #: ``qdcnn`` with no arguments (Typer shows the help).
 NO_ARGS: tuple[type[Exception], ...] = tuple(
-    c for c in (getattr(_typer_click, "NoArgsIsHelpError", None),) if c is not None
+    c for c in (getattr(click.exceptions, "NoArgsIsHelpError", None),) if c is not None
 )
 
 out = Console(highlight=False)
