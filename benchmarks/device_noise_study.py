@@ -27,8 +27,8 @@ from threadpoolctl import threadpool_limits
 
 from qdcnn.config import ShadowConfig
 from qdcnn.data.frames import load_frameset
+from qdcnn.data.splits import ContiguousKFold
 from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.evaluate import contiguous_folds
 from qdcnn.experiments.features import compute_features
 from qdcnn.experiments.noise_sweep import (
     SHADOW_THRESHOLDS,
@@ -51,7 +51,7 @@ def direction_rows(data: str, devices: dict[str, NoiseSpec | None], seed: int) -
     keep = table.readable
     X = table.features["image-split"][keep]
     y = frames.labels(cfg.labels)[keep]
-    splits = contiguous_folds(len(y), 5, 5)
+    splits = list(ContiguousKFold(5, gap=5).split(y))
     truth = np.concatenate([y[test] for _, test in splits])
     rows = []
     for method in ("uu", "vqc"):
