@@ -75,3 +75,16 @@ def test_no_cache_writes_nothing_and_image_methods_need_a_file(cache: Path) -> N
     assert not (cache / "models").exists()
     with pytest.raises(InputError, match="needs a trained model file"):
         default_direction_model("dnn-pilotnet")
+
+
+def test_the_video_processor_defaults_to_the_built_in_model(
+    cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from qdcnn.experiments import default_model
+    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+
+    monkeypatch.setattr(default_model, "DEFAULT_TRAINING_DATA", SMALL)
+    processor = LaneDirectionProcessor.train()
+    assert processor.model.method == DEFAULT_METHOD
+    assert processor.model.trained_on == " + ".join(SMALL)
+    assert default_model_path(DEFAULT_METHOD, 0, SMALL).is_file()

@@ -8,13 +8,14 @@ from typing import Annotated
 import typer
 
 from qdcnn.cli._common import JsonOpt, emit, fail, out
+from qdcnn.data.synthetic import PRESETS
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.synth import SynthSpec, run_synth
 
 
 def synth_cmd(
     out_dir: Annotated[Path, typer.Option("--out", help="Output folder.")],
-    preset: Annotated[str, typer.Option(help="track1 | track2 | rain")] = "track1",
+    preset: Annotated[str, typer.Option(help=" | ".join(PRESETS))] = "track1",
     n: Annotated[int, typer.Option("--n", help="Number of frames.")] = 100,
     seed: Annotated[int, typer.Option(help="Seed of the generator.")] = 0,
     width: Annotated[int, typer.Option(help="Frame width in pixels.")] = 320,

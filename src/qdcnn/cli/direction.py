@@ -286,8 +286,8 @@ def detect_lanes_cmd(
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
-    Without --model, a model of --method is trained first on a synthetic track1 drive
-    (300 frames) and the output says so.
+    Without --model, the built-in model of --method is used: trained once on 300 frames of
+    each synthetic preset (track1, track2, rain), cached, and named in the output.
     """
     try:
         spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)

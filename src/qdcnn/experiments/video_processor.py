@@ -9,6 +9,7 @@ come from a model file, from :meth:`LaneDirectionProcessor.train` or from a meth
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
 
@@ -55,12 +56,22 @@ class LaneDirectionProcessor:
 
     @classmethod
     def train(
-        cls, method: str = "image-split-uu", *, data: str = "synthetic:track1:300", seed: int = 0
+        cls,
+        method: str | None = None,
+        *,
+        data: str | Sequence[str] | None = None,
+        seed: int = 0,
     ) -> LaneDirectionProcessor:
-        """Fit lane method ``method`` on ``data`` (a dataset spec) with the default settings."""
-        from qdcnn.experiments.default_model import default_direction_model
+        """Fit lane method ``method`` on ``data`` (dataset specs) with the default settings.
 
-        return cls(default_direction_model(method, seed, data=data), seed=seed)
+        Without arguments this is the built-in default model of ``qdcnn run``
+        (:mod:`qdcnn.experiments.default_model`), read from the cache when there.
+        """
+        from qdcnn.experiments import default_model as dm
+
+        specs = dm.DEFAULT_TRAINING_DATA if data is None else data
+        model = dm.default_direction_model(method or dm.DEFAULT_METHOD, seed, data=specs)
+        return cls(model, seed=seed)
 
     def settings(self) -> dict[str, Any]:
         return {
