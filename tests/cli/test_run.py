@@ -90,3 +90,16 @@ def test_a_scheduler_that_does_not_answer_fails_fast(drive: Path, tmp_path: Path
     )
     assert res.exit_code == 2 and "127.0.0.1:9" in res.stderr
     assert time.perf_counter() - t0 < 60
+
+
+def test_failed_inputs_get_an_error_line_and_the_others_finish(
+    drive: Path, tmp_path: Path
+) -> None:
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(drive.read_bytes()[:2000])
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["run", str(drive), str(broken), "--out", str(out), "--no-video"])
+    assert res.exit_code == 1, res.output
+    errors = [line for line in res.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "broken.mp4: not a readable video" in errors[0]
+    assert (out / "track2" / "frames.csv").read_bytes().count(b"\n") == 25

@@ -24,8 +24,8 @@ from qdcnn.experiments.default_model import (
 )
 from qdcnn.experiments.direction_model import DirectionModel
 from qdcnn.experiments.methods import get_method
-from qdcnn.experiments.reporting import Reporter
-from qdcnn.experiments.video_run import Progress, RunOptions, RunResult, run_inputs
+from qdcnn.experiments.reporting import Failure, Reporter
+from qdcnn.experiments.video_run import InputResult, Progress, RunOptions, RunResult, run_inputs
 
 __all__ = ["RunSpec", "run"]
 
@@ -94,7 +94,19 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
         )
     for item in result.inputs:
         report.result(item.to_dict())
+        if not item.ok:
+            report.failure(Failure(item.source, _why_failed(item)))
     return result
+
+
+def _why_failed(item: InputResult) -> str:
+    """The input's error, or how many frames were bad and the first one's reason."""
+    if item.error is not None:
+        return item.error
+    index, reason = item.bad_frames[0]
+    return (
+        f"{item.source}: {len(item.bad_frames)} bad frame(s), the first at frame {index}: {reason}"
+    )
 
 
 def _input(item: str, spec: RunSpec) -> Any:
