@@ -116,13 +116,17 @@ def test_decoder_error_becomes_input_error(tmp_path: Path, monkeypatch: pytest.M
     assert "failed to decode" in message and "\n" not in message
 
 
-def test_truncated_png_is_one_input_error(tmp_path: Path) -> None:
+def test_truncated_png_is_one_input_error(tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
     _, buf = cv2.imencode(".png", small_image())
     path = tmp_path / "cut.png"
+    level = cv2.utils.logging.getLogLevel()
     for keep in (8, 30, 60, len(buf) - 5):
         path.write_bytes(buf.tobytes()[:keep])
         with pytest.raises(InputError, match="cut.png: not a readable image"):
             read_image(path)
+    # OpenCV's own "[ WARN ] PNG input buffer is incomplete" line stays off stderr
+    assert "WARN" not in capfd.readouterr().err
+    assert cv2.utils.logging.getLogLevel() == level
 
 
 def test_fifo_with_an_image_suffix_never_blocks(tmp_path: Path) -> None:

@@ -12,7 +12,8 @@ import io
 import os
 import stat
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -173,6 +174,18 @@ def _to_uint8(img: NDArray[np.generic], path: Path) -> NDArray[np.uint8]:
     raise InputError(display_path(path), f"unsupported pixel type {img.dtype}")
 
 
+@contextmanager
+def _opencv_quiet() -> Iterator[None]:
+    """Silence OpenCV's own warnings (a truncated PNG's ``[ WARN ]`` line on stderr): the
+    failure becomes qdcnn's one-line error instead. The caller's log level is restored."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
 def _decode(path: Path) -> NDArray[np.generic]:
     data = _read_bytes(path)
     shown = display_path(path)
@@ -180,7 +193,8 @@ def _decode(path: Path) -> NDArray[np.generic]:
     if width * height > MAX_PIXELS:
         raise InputError(shown, f"image is {width}x{height}, larger than {MAX_PIXELS} pixels")
     try:
-        img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        with _opencv_quiet():
+            img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     except cv2.error as exc:
         reason = " ".join(str(exc).split())[-160:]
         raise InputError(shown, f"{_UNREADABLE}: decoder error ({reason})") from None
