@@ -178,6 +178,12 @@ def test_progress_bar_goes_to_stderr(
     assert capsys.readouterr().err == ""
 
 
+def test_progress_bar_names_a_classical_twin() -> None:
+    twin = CNNDirectionClassifier("qdcnn-head", network_params={"head": "classical"})
+    assert twin._label() == "qdcnn-head-classical"
+    assert CNNDirectionClassifier("qdcnn-head")._label() == "qdcnn-head"
+
+
 def test_flip_averaging_is_mirror_symmetric(fitted: CNNDirectionClassifier) -> None:
     x, _ = line_frames(9, np.random.default_rng(5))
     params = {**fitted.get_params(), "tta": True}

@@ -400,6 +400,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     def _network_kw(self) -> dict[str, Any]:
         return dict(self.network_params or {})
 
+    def _label(self) -> str:
+        """The network's name on the progress bar; a hybrid's classical twin says so."""
+        twin = self._network_kw().get("head") == "classical"
+        return f"{self.arch}-classical" if twin else self.arch
+
     def _threads(self) -> int:
         from qdcnn.models.trainer import default_threads
 
@@ -474,7 +479,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         _set_quantum_noise(network, _as_noise("train_noise", self.train_noise), "train_noise")
         samples = FrameSamples.sequence(crop_resize(x, spec), y, k)
         extra, extra_of = _extra_samples(views, spec, k)
-        with rich_progress(self.arch, settings.epochs, enabled=self.progress) as callbacks:
+        with rich_progress(self._label(), settings.epochs, enabled=self.progress) as callbacks:
             trainer = Trainer(
                 settings,
                 transform=partial(normalise, spec=spec),
