@@ -92,9 +92,7 @@ def test_a_scheduler_that_does_not_answer_fails_fast(drive: Path, tmp_path: Path
     assert time.perf_counter() - t0 < 60
 
 
-def test_failed_inputs_get_an_error_line_and_the_others_finish(
-    drive: Path, tmp_path: Path
-) -> None:
+def test_failed_inputs_get_an_error_line_and_the_others_finish(drive: Path, tmp_path: Path) -> None:
     broken = tmp_path / "broken.mp4"
     broken.write_bytes(drive.read_bytes()[:2000])
     out = tmp_path / "run"

@@ -20,6 +20,7 @@ from qdcnn.errors import ParameterError
 from qdcnn.experiments.methods import DirectionMethod, register, unregister
 from qdcnn.experiments.noise import (
     NoiseSweepSpec,
+    predict_folds,
     run_noise_sweep,
     shadow_sweep,
     split_train_test,
@@ -72,6 +73,10 @@ class Recorder(Collector):
         ({"grouping": "halves"}, "grouping='halves' is invalid"),
         ({"readout": 2.0}, "readout=2.0 is invalid"),
         ({"shots": -3}, "shots=-3 is invalid"),
+        (
+            {"methods": "uu,qdcnn-head", "shots": 100},
+            "shots=100 is invalid: not used by qdcnn-head",
+        ),
         ({"inner_folds": 1}, "inner_folds=1 is invalid: 0 (none) or 2 to 100"),
         ({"folds": 1}, "folds=1 is invalid"),
         ({"gap": -1}, "gap=-1 is invalid"),
@@ -249,8 +254,13 @@ def test_a_frames_input_quantum_method_is_swept(brightness_method: str) -> None:
     y = load_frameset("synthetic:track1:60", seed=3).labels(PipelineConfig().labels)
     assert rows[1].accuracy == pytest.approx(np.mean(y == STRAIGHT))
     assert [p[0] for p in report.progresses] == ["noise sweep"]  # no lane features computed
-    with pytest.raises(ParameterError, match="^shots=8 is invalid: None: BrightnessRule"):
-        run_noise_sweep(replace(spec, shots=8))
+    with pytest.raises(ParameterError, match="^shots=8 is invalid: not used by toy-brightness"):
+        replace(spec, shots=8)
+    frames = np.stack(load_frameset("synthetic:track1:10", seed=3).images or [])[:6]
+    models = [(np.arange(6), BrightnessRule())]
+    with pytest.raises(ParameterError, match="^shots=8 is invalid: BrightnessRule models run"):
+        predict_folds(models, frames, None, shots=8)
+    assert predict_folds(models, frames, None).shape == (6,)
 
 
 # ---------------------------------------------------------------- shadows

@@ -214,7 +214,9 @@ def predict_folds(
         return out
     if shots is not None:
         raise ParameterError(
-            "shots", shots, f"None: {cls.__name__} has no predict_many to draw shots with"
+            "shots",
+            shots,
+            f"{cls.__name__} models run on exact probabilities only; leave shots unset",
         )
     x = np.asarray(X)
     return np.concatenate(

@@ -14,6 +14,7 @@ the result carries everything a front end prints (:meth:`NoiseSweepResult.tables
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,7 @@ from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.evaluate import executor_for
-from qdcnn.experiments.methods import TrainingOptions
+from qdcnn.experiments.methods import TrainingOptions, get_method, method_names
 from qdcnn.experiments.noise.direction import FRAMES, SweepTarget, direction_sweep, sweep_targets
 from qdcnn.experiments.noise.options import (
     SHADOW_METHOD,
@@ -144,6 +145,7 @@ class NoiseSweepSpec:
         parse_groupings(self.grouping)
         check_bool("train_under_noise", self.train_under_noise)
         check_optional_shots(self.shots)
+        _check_shots_apply(self.shots, methods)
         check_probability("readout", self.readout)
         check_int("folds", self.folds, 2, 10_000)
         check_int("gap", self.gap, 0, 10_000)
@@ -353,3 +355,17 @@ def _direction_inputs(
     if images is not None:
         inputs[FRAMES] = images[keep]
     return inputs, labels, failures
+
+
+def _check_shots_apply(shots: int | None, methods: Sequence[str]) -> None:
+    """Image methods (the hybrid CNNs) run on exact probabilities: refuse shots up front,
+    before any training, instead of after it."""
+    registered = [m for m in direction_methods(methods) if m in method_names()]
+    hybrids = [m for m in registered if get_method(m).inputs == "frames"]
+    if shots is not None and hybrids:
+        raise ParameterError(
+            "shots",
+            shots,
+            f"not used by {', '.join(hybrids)} (image methods run on exact probabilities); "
+            "leave it unset or sweep them separately",
+        )
