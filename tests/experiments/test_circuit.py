@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from qdcnn._optional import has_module
-from qdcnn.errors import ParameterError
+from qdcnn.errors import MissingExtraError, ParameterError
 from qdcnn.experiments.circuit import (
     CIRCUIT_KINDS,
     QASM_UNCHECKED_NOTE,
@@ -73,11 +74,18 @@ def test_uu_exact_and_noisy() -> None:
 def test_vqc_matches_the_simulator_and_exports_qasm(tmp_path: Path) -> None:
     qasm = tmp_path / "vqc.qasm"
     spec = CircuitSpec("vqc", x="0.3,1.2", weights="0.1,0.2,0.3,0.4", qasm=qasm)
+    if not has_module("qiskit"):  # the export needs the quantum extra, and says so
+        with pytest.raises(MissingExtraError, match=r"pip install 'qdcnn\[quantum\]'"):
+            inspect_circuit(spec, Collector())
+        assert not qasm.exists()
+        spec = replace(spec, qasm=None)
     report = Collector()
     res = inspect_circuit(spec, report)
     assert res.states == ["00", "01", "10", "11"] and res.state_header == "state (q1..q0)"
     expected = probabilities(vqc_circuit([[0.3, 1.2]], [0.1, 0.2, 0.3, 0.4]))[0]
     np.testing.assert_allclose(res.probabilities, expected, atol=1e-12)
+    if spec.qasm is None:
+        pytest.skip("qiskit not installed: no OpenQASM export")
     assert res.qasm == qasm and res.to_dict()["qasm"] == str(qasm)
     assert res.parameters == {
         "x": [0.3, 1.2],
