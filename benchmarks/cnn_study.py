@@ -7,7 +7,7 @@ Four parts, each optional:
    (gap 5 around each) and is scored on fold k+1 only, never on fold k; mean over k.
    ``--dev-set NAME:KEY=JSON,KEY=JSON`` adds a variant (repeatable); ``--dev-data`` picks
    the recording (default: mountain, so the lake and synthetic sets stay for confirming).
-1. ``pilotnet``: :func:`qdcnn.experiments.evaluate_dnn.evaluate_cnn` with PilotNet on each
+1. ``pilotnet``: :func:`qdcnn.experiments.evaluate.evaluate_frames` with PilotNet on each
    dataset (5 contiguous folds, gap 5, the classifier's defaults): accuracy mean and std over
    folds, majority baseline, per-class recall, pooled confusion matrix, wall time.
 2. ``resnet``: seconds per training frame of ResNet-50 (224x224 input, one epoch over

@@ -5,7 +5,7 @@ Every lane method of the registry (the paper's pipeline) is scored two ways:
 * **across presets**: trained on two synthetic presets of track1 / track2 / rain and
   tested on the third (three rounds);
 * **on recordings**: trained on all three presets (the training data of the built-in
-  default, ``qdcnn.experiments.detect_lanes.DEFAULT_TRAINING_DATA``) and tested,
+  default, ``qdcnn.experiments.default_model.DEFAULT_TRAINING_DATA``) and tested,
   unchanged, on every recording in ``../shared/data`` that is present.
 
 Each score is accuracy minus the test set's majority-class share (a constant guess

@@ -136,7 +136,11 @@ def training_options(
 def evaluate_cmd(
     data: DataOpt,
     method: Annotated[
-        str, typer.Option(help="A method, a comma list or 'all' (the paper's table).")
+        str,
+        typer.Option(
+            help="A method, a comma list or 'all' (every registered method; those needing "
+            "torch are left out without the dnn extra, dnn-resnet50 without a GPU)."
+        ),
     ] = "all",
     folds: FoldsOpt = 5,
     gap: GapOpt = 5,
