@@ -35,6 +35,10 @@ def test_round_trip_predicts_the_same(method: str, tmp_path: Path) -> None:
     np.testing.assert_array_equal(back.predict(X), model.predict(X))
     np.testing.assert_allclose(back.predict_proba(X), model.predict_proba(X), atol=0)
     assert back.estimator.get_params() == model.estimator.get_params()
+    # one call for both (one circuit run where the estimator offers it) gives the same values
+    labels, proba = back.predict_with_proba(X)
+    np.testing.assert_array_equal(labels, model.predict(X))
+    np.testing.assert_allclose(proba, model.predict_proba(X), atol=0)
 
 
 def test_a_pickled_model_is_refused_and_never_run(tmp_path: Path) -> None:

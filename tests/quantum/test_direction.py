@@ -185,6 +185,22 @@ def test_rows_with_a_missing_slope_get_the_majority_class(rng: np.random.Generat
     assert np.isnan(clf.decision_function(Xt)[:3]).all() and np.isfinite(proba).all()
 
 
+@pytest.mark.parametrize("shots", [None, 1024])
+def test_predict_with_proba_is_predict_and_predict_proba(
+    rng: np.random.Generator, shots: int | None
+) -> None:
+    X, y = road_slopes(120, rng)
+    X[:4, 0] = np.nan
+    clf = UUDirectionClassifier(shots=shots, seed=2).fit(X, y)
+    labels, proba = clf.predict_with_proba(X)
+    np.testing.assert_array_equal(labels, clf.predict(X))
+    np.testing.assert_array_equal(proba, clf.predict_proba(X))
+    noise = NoiseSpec("depolarizing", 0.3)
+    labels, proba = clf.predict_with_proba(X, noise)
+    np.testing.assert_array_equal(labels, clf.predict(X, noise))
+    np.testing.assert_array_equal(proba, clf.predict_proba(X, noise))
+
+
 def test_input_errors() -> None:
     X = np.array([[-1.0, 1.0], [0.0, 2.0]])
     with pytest.raises(NotFittedError):

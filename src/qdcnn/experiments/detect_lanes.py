@@ -234,8 +234,8 @@ class _Decider:
         frame = process_frame(image, self.model.config, (self.grouping,), rng=rng)
         lanes = frame.lanes[self.grouping]
         inputs = lanes.features if self.model.info.inputs == "lanes" else image[None]
-        label = int(self.model.predict(inputs)[0])
-        probs = self.model.predict_proba(inputs)
+        labels, probs = self.model.predict_with_proba(inputs)
+        label = int(labels[0])
         seconds = time.perf_counter() - t0
         direction = DIRECTIONS[label]
         overlay = draw_lane_overlay(

@@ -101,6 +101,20 @@ class DirectionModel:
             x = np.atleast_2d(x.astype(np.float64))
         return np.asarray(self.estimator.predict_proba(x), dtype=np.float64)
 
+    def predict_with_proba(
+        self, inputs: ArrayLike
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64] | None]:
+        """:meth:`predict` and :meth:`predict_proba` together, in one classifier run when the
+        estimator offers ``predict_with_proba`` (the same values either way)."""
+        both = getattr(self.estimator, "predict_with_proba", None)
+        if both is None:
+            return self.predict(inputs), self.predict_proba(inputs)
+        x = np.asarray(inputs)
+        if self.info.inputs == "lanes":
+            x = np.atleast_2d(x.astype(np.float64))
+        labels, probs = both(x)
+        return np.asarray(labels, dtype=np.int64), np.asarray(probs, dtype=np.float64)
+
     # ------------------------------------------------------------ persistence
 
     def save(self, path: str | os.PathLike[str]) -> Path:

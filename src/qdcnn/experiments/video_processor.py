@@ -99,10 +99,13 @@ class LaneDirectionProcessor:
         frame = process_frame(image, self.config, (self.grouping,), rng=rng)
         lanes = frame.lanes[self.grouping]
         inputs = image[None] if self.reads_frames else np.atleast_2d(lanes.features)
-        label = int(self.model.predict(inputs)[0])
         probs = None
-        if self.classes is not None:
-            probs = tuple(float(p) for p in self.model.predict_proba(inputs)[0])
+        if self.classes is None:
+            label = int(self.model.predict(inputs)[0])
+        else:
+            labels, scores = self.model.predict_with_proba(inputs)
+            label = int(labels[0])
+            probs = None if scores is None else tuple(float(p) for p in scores[0])
         mask = frame.shadow_mask
         fraction = None if mask is None else float(np.count_nonzero(mask)) / mask.size
         drawing = (frame.segments, lanes, mask)

@@ -482,11 +482,7 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     def predict(self, X: ArrayLike, noise: NoiseSpec | None = None) -> NDArray[np.int64]:
         """Direction per row by the paper's rule; majority training class for missing slopes."""
-        d = self.decision_function(X, noise)
-        out = np.full(d.shape, self.majority_class_, dtype=np.int64)
-        ok = np.isfinite(d)
-        out[ok] = rule(d[ok], 0.0, self.margin_)
-        return out
+        return self._labels(self.decision_function(X, noise))
 
     def predict_proba(self, X: ArrayLike, noise: NoiseSpec | None = None) -> NDArray[np.float64]:
         """Soft scores ``softmax([-d - m, 0, d - m] / temperature)`` with ``d = P1 - P2``.
@@ -494,7 +490,23 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         Columns are left, straight, right; the argmax agrees with :meth:`predict`. Rows with
         a missing slope get the training class frequencies.
         """
+        return self._scores(self.decision_function(X, noise))
+
+    def predict_with_proba(
+        self, X: ArrayLike, noise: NoiseSpec | None = None
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """:meth:`predict` and :meth:`predict_proba` from one run of the circuits (a video
+        frame needs both; with shots both calls sample the same seeded stream anyway)."""
         d = self.decision_function(X, noise)
+        return self._labels(d), self._scores(d)
+
+    def _labels(self, d: NDArray[np.float64]) -> NDArray[np.int64]:
+        out = np.full(d.shape, self.majority_class_, dtype=np.int64)
+        ok = np.isfinite(d)
+        out[ok] = rule(d[ok], 0.0, self.margin_)
+        return out
+
+    def _scores(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         out = np.tile(self.class_prior_, (d.size, 1))
         ok = np.isfinite(d)
         out[ok] = soft_scores(d[ok], self.margin_, float(self.temperature))
