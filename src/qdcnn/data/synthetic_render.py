@@ -12,7 +12,7 @@ the blurred coverage ``>= 0.5``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -787,6 +787,23 @@ def _draw_cars(img: F32, labels: U8, take: Take, view: _View, t: float) -> None:
 _BOX_CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
 
 
+def _visible_walls(
+    take: Take, view: _View, corners: FloatArray
+) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, bool]]:
+    """``(a, b, mid, lit)`` for each wall of a box (ground ``corners`` in order) that faces
+    the camera: its two ends, its middle and whether the sun shines on it."""
+    centre = corners.mean(0)
+    cam_pos = np.array([view.x0, view.z0])
+    sun = -np.array([math.sin(take.shadow_direction), math.cos(take.shadow_direction)])
+    for k in range(4):
+        a, b = corners[k], corners[(k + 1) % 4]
+        mid = (a + b) / 2
+        normal = mid - centre
+        if np.dot(normal, cam_pos - mid) <= 0:
+            continue  # facing away from the camera
+        yield a, b, mid, bool(take.sun_out and float(np.dot(normal, sun)) > 0)
+
+
 def _box_faces(
     take: Take,
     view: _View,
@@ -798,16 +815,7 @@ def _box_faces(
 ) -> list[tuple[FloatArray, tuple[float, ...]]]:
     """Image polygons and colours of a box's walls facing the camera, then its top."""
     out: list[tuple[FloatArray, tuple[float, ...]]] = []
-    centre = corners.mean(0)
-    cam_pos = np.array([view.x0, view.z0])
-    sun = -np.array([math.sin(take.shadow_direction), math.cos(take.shadow_direction)])
-    for k in range(4):
-        a, b = corners[k], corners[(k + 1) % 4]
-        mid = (a + b) / 2
-        normal = mid - centre
-        if np.dot(normal, cam_pos - mid) <= 0:
-            continue
-        lit = take.sun_out and float(np.dot(normal, sun)) > 0
+    for a, b, _, lit in _visible_walls(take, view, corners):
         shade = 1.0 if lit else 0.7
         pts = _project_3d(view, np.array([[*a, z0], [*b, z0], [*b, z1], [*a, z1]]))
         if pts is not None:
@@ -830,16 +838,7 @@ def _building_faces(
 ) -> list[tuple[list[FloatArray], tuple[float, ...]]]:
     """Visible walls of a box building, then their windows: image polygons and a colour."""
     out: list[tuple[list[FloatArray], tuple[float, ...]]] = []
-    centre = corners.mean(0)
-    cam_pos = np.array([view.x0, view.z0])
-    sun = -np.array([math.sin(take.shadow_direction), math.cos(take.shadow_direction)])
-    for k in range(4):
-        a, b = corners[k], corners[(k + 1) % 4]
-        mid = (a + b) / 2
-        normal = mid - centre
-        if np.dot(normal, cam_pos - mid) <= 0:
-            continue  # facing away from the camera
-        lit = take.sun_out and float(np.dot(normal, sun)) > 0
+    for a, b, mid, lit in _visible_walls(take, view, corners):
         factor = 1.0 if lit else (0.45 if take.sun_out else 0.8)
         z_mid = max(float(view.to_camera(mid[:1], mid[1:])[1][0]), MIN_Z)
         wall_col = _hazed((np.asarray(colour) * take.tint * factor)[None], np.array([z_mid]), take)
