@@ -53,6 +53,11 @@ JsonOpt = Annotated[
     bool, typer.Option("--json", help="Print only JSON on stdout (one object per line).")
 ]
 SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
+CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
+FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
+GapOpt = Annotated[
+    int, typer.Option(help="Frames left out of training on each side of a test block.")
+]
 
 
 def emit(obj: Mapping[str, Any]) -> None:

@@ -9,7 +9,17 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.cli._common import (
+    CacheOpt,
+    CliReporter,
+    FoldsOpt,
+    GapOpt,
+    JsonOpt,
+    SeedOpt,
+    emit,
+    fail,
+    out,
+)
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.detect_lanes import DetectLanesResult, DetectLanesSpec, detect_lanes
@@ -18,10 +28,6 @@ from qdcnn.experiments.evaluate import EvaluationResult, EvaluationSpec, run_eva
 from qdcnn.experiments.methods import TrainingOptions, with_head
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
-FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
-GapOpt = Annotated[
-    int, typer.Option(help="Frames left out of training on each side of a test block.")
-]
 InnerOpt = Annotated[
     int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
 ]
@@ -44,8 +50,6 @@ EpochsOpt = Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 
 WeightsOpt = Annotated[
     Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
 ]
-SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
-CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
 FeaturesOpt = Annotated[
     str,
     typer.Option(

@@ -8,7 +8,17 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.cli._common import (
+    CacheOpt,
+    CliReporter,
+    FoldsOpt,
+    GapOpt,
+    JsonOpt,
+    SeedOpt,
+    emit,
+    fail,
+    out,
+)
 from qdcnn.cli.direction import (
     EpochsOpt,
     LanesOpt,
@@ -61,10 +71,6 @@ ShotsOpt = Annotated[
     int | None, typer.Option(help="Shots per circuit at evaluation (default: exact probabilities).")
 ]
 ReadoutOpt = Annotated[float, typer.Option(help="Readout error added at every point, in [0, 1].")]
-FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
-GapOpt = Annotated[
-    int, typer.Option(help="Frames left out of training on each side of a test block.")
-]
 InnerOpt = Annotated[int, typer.Option(help="Inner folds choosing hyperparameters (0: none).")]
 ShadowSetOpt = Annotated[
     Path | None,
@@ -83,8 +89,6 @@ ThresholdsOpt = Annotated[
 PlotOpt = Annotated[
     Path | None, typer.Option(help="Write the accuracy figure here (shadow BER: NAME_shadow.EXT).")
 ]
-SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
-CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
 
 
 def noise_sweep_cmd(

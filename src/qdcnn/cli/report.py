@@ -9,7 +9,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, err, fail, out
+from qdcnn.cli._common import CacheOpt, CliReporter, JsonOpt, SeedOpt, emit, err, fail, out
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.reproduce import (
     ReproduceResult,
@@ -24,7 +24,6 @@ ForceOpt = Annotated[bool, typer.Option("--force", help="Overwrite an existing r
 ResumeOpt = Annotated[
     bool, typer.Option("--resume", help="Continue a run in --out, keeping finished sections.")
 ]
-SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
 
 
 class _StageLines(CliReporter, StageReporter):
@@ -91,7 +90,6 @@ MaxFramesOpt = Annotated[
     int | None, typer.Option(help="At most this many frames from each recording's start.")
 ]
 SyntheticOpt = Annotated[int | None, typer.Option(help="Frames of each synthetic drive.")]
-CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
 
 
 def reproduce_cmd(
