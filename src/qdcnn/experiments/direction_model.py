@@ -85,21 +85,20 @@ class DirectionModel:
         """The lane grouping whose features the model reads (``None`` for frame models)."""
         return self.info.grouping
 
+    def _as_inputs(self, inputs: ArrayLike) -> NDArray[Any]:
+        """Frames as given; lane features as a float 2-D table (one frame's row included)."""
+        x = np.asarray(inputs)
+        return np.atleast_2d(x.astype(np.float64)) if self.info.inputs == "lanes" else x
+
     def predict(self, inputs: ArrayLike) -> NDArray[np.int64]:
         """Directions (0 left, 1 straight, 2 right) of lane features ``(N, F)`` or frames."""
-        x = np.asarray(inputs)
-        if self.info.inputs == "lanes":
-            x = np.atleast_2d(x.astype(np.float64))
-        return np.asarray(self.estimator.predict(x), dtype=np.int64)
+        return np.asarray(self.estimator.predict(self._as_inputs(inputs)), dtype=np.int64)
 
     def predict_proba(self, inputs: ArrayLike) -> NDArray[np.float64] | None:
         """Class probabilities ``(N, 3)``, or ``None`` when the estimator has none."""
         if not hasattr(self.estimator, "predict_proba"):
             return None
-        x = np.asarray(inputs)
-        if self.info.inputs == "lanes":
-            x = np.atleast_2d(x.astype(np.float64))
-        return np.asarray(self.estimator.predict_proba(x), dtype=np.float64)
+        return np.asarray(self.estimator.predict_proba(self._as_inputs(inputs)), dtype=np.float64)
 
     def predict_with_proba(
         self, inputs: ArrayLike
@@ -109,10 +108,7 @@ class DirectionModel:
         both = getattr(self.estimator, "predict_with_proba", None)
         if both is None:
             return self.predict(inputs), self.predict_proba(inputs)
-        x = np.asarray(inputs)
-        if self.info.inputs == "lanes":
-            x = np.atleast_2d(x.astype(np.float64))
-        labels, probs = both(x)
+        labels, probs = both(self._as_inputs(inputs))
         return np.asarray(labels, dtype=np.int64), np.asarray(probs, dtype=np.float64)
 
     # ------------------------------------------------------------ persistence
