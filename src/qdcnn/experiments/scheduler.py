@@ -138,14 +138,10 @@ def parse_scheduler(spec: str | None) -> tuple[str, int | str | None]:
 def _limit_threads() -> None:
     """One thread per worker for OpenCV and BLAS (workers are the parallelism)."""
     import cv2
+    from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
     cv2.setNumThreads(1)
-    try:
-        from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
-
-        threadpool_limits(1)
-    except ImportError:  # pragma: no cover - threadpoolctl is a base dependency
-        pass
+    threadpool_limits(1)
 
 
 class Executor:

@@ -71,12 +71,12 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import cache
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._threads import single_thread
 from qdcnn.config import GroupingConfig
 from qdcnn.errors import InputError, ParameterError
 
@@ -404,22 +404,6 @@ def _check_extras(extra_features: Sequence[str]) -> None:
             raise ParameterError("extra_features", extra, f"one of {allowed}")
 
 
-@cache
-def _thread_controller() -> Any:
-    from threadpoolctl import ThreadpoolController  # type: ignore[import-untyped]
-
-    return ThreadpoolController()
-
-
-def _single_thread() -> Any:
-    """Context limiting OpenMP/BLAS to one thread.
-
-    On a few dozen points scikit-learn's thread pools cost far more than the work
-    (KMeans: about 20 ms per call with 2 threads against 0.7 ms with 1).
-    """
-    return _thread_controller().limit(limits=1)
-
-
 def _cluster(descriptors: NDArray[np.float64], method: str, seed: int) -> NDArray[np.int64]:
     """Labels 0/1 from k-means or spectral clustering; all zeros when two groups make no sense."""
     n = len(descriptors)
@@ -431,7 +415,9 @@ def _cluster(descriptors: NDArray[np.float64], method: str, seed: int) -> NDArra
         return np.array([0, 1], dtype=np.int64)
     from sklearn.cluster import KMeans, SpectralClustering
 
-    with _single_thread(), warnings.catch_warnings():
+    # on a few dozen points scikit-learn's thread pools cost far more than the work
+    # (KMeans: about 20 ms per call with 2 threads against 0.7 ms with 1)
+    with single_thread(), warnings.catch_warnings():
         # small or disconnected neighbour graphs are expected here, and handled
         warnings.simplefilter("ignore")
         if method == "kmeans":
