@@ -6,7 +6,7 @@ Target (issue 4): at most 10 s on one core. The timed region is
 once without noise, then all test frames classified under each of the 60 (channel, p)
 settings with exact density-matrix probabilities (the estimators' batched
 ``predict_many``). Frames, labels and lane features come from
-:func:`qdcnn.experiments.lane_data.load_lane_data` (computed or read from the cache) before
+:func:`qdcnn.direction.lane_data.load_lane_data` (computed or read from the cache) before
 timing, exactly as ``run_noise_sweep`` gets them. The process is pinned to one CPU and
 BLAS/OpenMP are limited to one thread.
 
@@ -28,7 +28,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from qdcnn.config import PipelineConfig
-from qdcnn.experiments.lane_data import load_lane_data
+from qdcnn.direction.lane_data import load_lane_data
 from qdcnn.experiments.noise import PAPER_STRENGTHS, direction_sweep
 from qdcnn.quantum.noise import PAPER_CHANNELS
 

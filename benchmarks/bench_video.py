@@ -5,7 +5,7 @@ overlay encode on one core at >= 300 frames/s, >= 500 without the overlay; frame
 640x480 and 1280x720; ``local:2`` (a Dask LocalCluster of two worker processes) at >= 1.7x
 one process on the same 10,000-frame job, with the per-task overhead.
 
-All times are **measured** wall-clock times of :func:`qdcnn.experiments.video_run.run_inputs`
+All times are **measured** wall-clock times of :func:`qdcnn.runtime.engine.run_inputs`
 (reading the file, every frame's processing, writing chunks, assembling frames.csv and
 overlay.mp4, the manifest). One-core parts run in a child process pinned to one CPU
 (``os.sched_setaffinity``, OpenCV and BLAS limited to one thread, PyAV decoding and
@@ -47,7 +47,7 @@ def cached_video(width: int, height: int, frames: int) -> Path:
     """The synthetic drive video of this size, rendered on first use."""
     from qdcnn.data.synthetic import iter_drive
     from qdcnn.data.writers import write_video
-    from qdcnn.experiments.features import cache_dir
+    from qdcnn.direction.features import cache_dir
 
     path = cache_dir() / "bench-video" / f"track1-{width}x{height}-{frames}.mp4"
     if not path.exists():
@@ -58,7 +58,7 @@ def cached_video(width: int, height: int, frames: int) -> Path:
 
 
 def processor() -> Any:
-    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+    from qdcnn.direction.processor import LaneDirectionProcessor
 
     return LaneDirectionProcessor.train("image-split-uu", data="synthetic:track1:300", seed=0)
 
@@ -67,8 +67,8 @@ def timed_run(
     video: Path, overlay: bool, scheduler: str | None = None, proc: Any = None
 ) -> dict[str, Any]:
     """One run of the runner into a fresh folder; wall time and the per-frame breakdown."""
-    from qdcnn.experiments.scheduler import Executor
-    from qdcnn.experiments.video_run import RunOptions, run_inputs
+    from qdcnn.runtime.engine import RunOptions, run_inputs
+    from qdcnn.runtime.scheduler import Executor
 
     proc = proc or processor()
     with tempfile.TemporaryDirectory() as out, Executor(scheduler, timeout=120) as ex:

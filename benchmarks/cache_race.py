@@ -7,7 +7,7 @@ same entry ``--writes`` times, then checks the entry left behind::
 
 Prints ``N pairs: C with a crashed writer, B with a bad entry left``. Measured on the
 development machine (2 shared cores) with ``--pairs 10``: 0 and 0; the cache before
-``qdcnn.experiments.feature_cache`` (one fixed temporary name) crashed a writer in 10 of 10.
+``qdcnn.direction.feature_cache`` (one fixed temporary name) crashed a writer in 10 of 10.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ WRITER = textwrap.dedent(
     import numpy as np
 
     from qdcnn.batch import Failure
-    from qdcnn.experiments.feature_cache import CachedFeatures, read_entry, write_entry
+    from qdcnn.direction.feature_cache import CachedFeatures, read_entry, write_entry
 
     path, seed, writes = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
     n, groupings = 2000, ("image-split", "kmeans", "spectral")
@@ -52,7 +52,7 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=40)
     parser.add_argument("--writes", type=int, default=20)
     args = parser.parse_args()
-    from qdcnn.experiments.feature_cache import read_entry
+    from qdcnn.direction.feature_cache import read_entry
 
     crashed = bad = 0
     for _ in range(args.pairs):

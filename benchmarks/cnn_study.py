@@ -42,9 +42,9 @@ import numpy as np
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import load_frameset, stack_images
 from qdcnn.data.labels import DIRECTIONS
+from qdcnn.direction.methods import TrainingOptions
+from qdcnn.direction.protocol import ContiguousKFold
 from qdcnn.experiments.evaluate import evaluate_frames
-from qdcnn.experiments.methods import TrainingOptions
-from qdcnn.experiments.protocol import ContiguousKFold
 from qdcnn.models.training import CNNDirectionClassifier, inference_fps
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

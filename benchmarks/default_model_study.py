@@ -5,7 +5,7 @@ Every lane method of the registry (the paper's pipeline) is scored two ways:
 * **across presets**: trained on two synthetic presets of track1 / track2 / rain and
   tested on the third (three rounds);
 * **on recordings**: trained on all three presets (the training data of the built-in
-  default, ``qdcnn.experiments.default_model.DEFAULT_TRAINING_DATA``) and tested,
+  default, ``qdcnn.direction.builtin.DEFAULT_TRAINING_DATA``) and tested,
   unchanged, on every recording in ``../shared/data`` that is present.
 
 Each score is accuracy minus the test set's majority-class share (a constant guess
@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from qdcnn.config import PipelineConfig
-from qdcnn.experiments.direction_model import train_direction_model
-from qdcnn.experiments.lane_data import load_lane_data
-from qdcnn.experiments.methods import get_method, method_names
+from qdcnn.direction.lane_data import load_lane_data
+from qdcnn.direction.methods import get_method, method_names
+from qdcnn.direction.model import train_direction_model
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 RECORDINGS = ["udacity-lake-track", "udacity-mountain-track", "udacity-dark-mountain-track"]

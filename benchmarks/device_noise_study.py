@@ -25,13 +25,13 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from qdcnn.config import PAPER_SHADOW_THRESHOLDS as SHADOW_THRESHOLDS
 from qdcnn.config import ShadowConfig
 from qdcnn.data.frames import load_frameset
 from qdcnn.data.splits import ContiguousKFold
-from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.features import compute_features
-from qdcnn.experiments.noise_sweep import (
-    SHADOW_THRESHOLDS,
+from qdcnn.direction.features import compute_features
+from qdcnn.direction.model import default_config
+from qdcnn.experiments.noise import (
     fit_direction_model,
     predict_folds,
     split_train_test,

@@ -19,7 +19,7 @@ Modes (every one but "paper" is a named option, not the paper's):
     As ``slopes-rgb``, with the feature mode of that name
     (:attr:`qdcnn.config.GroupingConfig.FEATURE_MODES`) and the named modes' VQC grid.
 
-Features are cached by :func:`qdcnn.experiments.lane_data.load_lane_data`; the named
+Features are cached by :func:`qdcnn.direction.lane_data.load_lane_data`; the named
 modes share one feature table (all their extras computed at once).
 
 Usage::
@@ -51,10 +51,10 @@ from sklearn.ensemble import HistGradientBoostingClassifier
 
 from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset
+from qdcnn.direction.lane_data import load_lane_data
+from qdcnn.direction.methods import GROUPINGS, get_method, method_names
+from qdcnn.direction.protocol import ContiguousKFold
 from qdcnn.experiments.evaluate import evaluate_features
-from qdcnn.experiments.lane_data import load_lane_data
-from qdcnn.experiments.methods import GROUPINGS, get_method, method_names
-from qdcnn.experiments.protocol import ContiguousKFold
 from qdcnn.pipeline import process_frame
 from qdcnn.vision.grouping import mode_columns
 

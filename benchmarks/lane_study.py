@@ -72,10 +72,10 @@ from numpy.typing import NDArray
 
 from qdcnn.config import GroupingConfig, LabelConfig, LaneConfig, PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset
+from qdcnn.direction.features import cache_dir, code_fingerprint
+from qdcnn.direction.methods import get_method, method_names
+from qdcnn.direction.protocol import ContiguousKFold, majority_baseline
 from qdcnn.experiments.evaluate import evaluate_features
-from qdcnn.experiments.features import cache_dir, code_fingerprint
-from qdcnn.experiments.methods import get_method, method_names
-from qdcnn.experiments.protocol import ContiguousKFold, majority_baseline
 from qdcnn.pipeline import GROUPINGS, auto_lanes, process_recording, recording_sample
 from qdcnn.vision.camera import CameraGeometry, estimate_camera
 from qdcnn.vision.grouping import feature_names

@@ -123,7 +123,7 @@ def test_synth_killed_then_run_again(tmp_path: Path, env: dict[str, str]) -> Non
 
 
 def test_evaluate_killed_while_caching_features(tmp_path: Path, env: dict[str, str]) -> None:
-    from qdcnn.experiments import feature_cache
+    from qdcnn.direction import feature_cache
 
     args = ["evaluate", "--data", "synthetic:track2:400", "--method", "image-split-uu", "--json"]
     cache = Path(env["QDCNN_CACHE"])

@@ -8,7 +8,15 @@ import sys
 
 import pytest
 
-PACKAGES = ["qdcnn.data", "qdcnn.vision", "qdcnn.quantum", "qdcnn.models", "qdcnn.experiments"]
+PACKAGES = [
+    "qdcnn.data",
+    "qdcnn.vision",
+    "qdcnn.quantum",
+    "qdcnn.models",
+    "qdcnn.direction",
+    "qdcnn.runtime",
+    "qdcnn.experiments",
+]
 NEEDS = {"qdcnn.models": "torch"}
 
 

@@ -395,7 +395,7 @@ class GroupingConfig:
     """Grouping of Hough segments into two lines (paper Sec. II-A-3; NOTES 5).
 
     The grouping itself (image-split, k-means or spectral) is not a setting: every
-    direction method names its own (:mod:`qdcnn.experiments.methods`), and one pass of the
+    direction method names its own (:mod:`qdcnn.direction.methods`), and one pass of the
     pipeline computes the features of several groupings from the same segments.
 
     Attributes

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from qdcnn.cli import app
 from qdcnn.data import images as image_io
 from qdcnn.data.images import read_mask, write_image, write_mask
-from qdcnn.experiments.direction_model import DirectionModel
+from qdcnn.direction.model import DirectionModel
 
 runner = CliRunner()
 

@@ -14,7 +14,7 @@ from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.circuit import parse_angle
-from qdcnn.experiments.noise_sweep import synthetic_shadow_set
+from qdcnn.experiments.noise import synthetic_shadow_set
 from qdcnn.quantum.circuits import vqc_circuit
 from qdcnn.quantum.simulator import probabilities
 
@@ -259,8 +259,8 @@ def test_the_trained_head_of_a_saved_model_exports_and_runs_on_aer(tmp_path: Pat
     from qiskit_aer import AerSimulator
 
     from qdcnn.config import PipelineConfig
-    from qdcnn.experiments.direction_model import train_direction_model
-    from qdcnn.experiments.methods import TrainingOptions
+    from qdcnn.direction.methods import TrainingOptions
+    from qdcnn.direction.model import train_direction_model
 
     rng = np.random.default_rng(0)
     images = rng.integers(0, 255, (12, 40, 80, 3), dtype=np.uint8)

@@ -13,10 +13,10 @@ from qdcnn.data.frames import load_frameset, parse_spec
 from qdcnn.data.images import write_image
 from qdcnn.data.synthetic import generate_drive
 from qdcnn.data.writers import write_udacity
+from qdcnn.direction import features as features_module
+from qdcnn.direction.features import code_fingerprint, compute_features
+from qdcnn.direction.model import default_config
 from qdcnn.errors import ParameterError
-from qdcnn.experiments import features as features_module
-from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.features import code_fingerprint, compute_features
 from qdcnn.pipeline import process_frame
 
 

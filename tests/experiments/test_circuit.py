@@ -19,9 +19,9 @@ from qdcnn.experiments.circuit import (
     inspect_circuit,
     parse_angle,
 )
-from qdcnn.experiments.reporting import Collector
 from qdcnn.quantum.circuits import vqc_circuit
 from qdcnn.quantum.simulator import probabilities
+from qdcnn.runtime.reporting import Collector
 
 
 def test_parse_angle() -> None:

@@ -10,7 +10,7 @@ import pytest
 from qdcnn.data.images import write_image
 from qdcnn.data.synthetic import generate_scenes
 from qdcnn.experiments.detect_lanes import DetectLanesSpec, detect_lanes
-from qdcnn.experiments.reporting import Collector
+from qdcnn.runtime.reporting import Collector
 
 
 @pytest.fixture(scope="module")

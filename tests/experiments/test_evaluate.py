@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from qdcnn.config import GroupingConfig, PipelineConfig
+from qdcnn.direction.methods import get_method
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import EvaluationSpec, evaluate_features, run_evaluation
-from qdcnn.experiments.methods import get_method
-from qdcnn.experiments.reporting import Collector
+from qdcnn.runtime.reporting import Collector
 
 
 def test_evaluate_learns_separable_features(rng: np.random.Generator) -> None:

@@ -12,9 +12,9 @@ cv2 = pytest.importorskip("cv2")
 
 from qdcnn.config import PipelineConfig  # noqa: E402
 from qdcnn.data.frames import FrameSet, stack_images  # noqa: E402
+from qdcnn.direction.methods import TrainingOptions  # noqa: E402
+from qdcnn.direction.protocol import ContiguousKFold  # noqa: E402
 from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
-from qdcnn.experiments.methods import TrainingOptions  # noqa: E402
-from qdcnn.experiments.protocol import ContiguousKFold  # noqa: E402
 
 
 def lean_frame(label: int, rng: np.random.Generator, h: int = 40, w: int = 80) -> np.ndarray:

@@ -11,10 +11,10 @@ torch = pytest.importorskip("torch")
 cv2 = pytest.importorskip("cv2")
 
 from qdcnn.config import PipelineConfig  # noqa: E402
+from qdcnn.direction.methods import TrainingOptions, get_method, with_head  # noqa: E402
+from qdcnn.direction.model import DirectionModel, train_direction_model  # noqa: E402
 from qdcnn.errors import ParameterError  # noqa: E402
-from qdcnn.experiments.direction_model import DirectionModel, train_direction_model  # noqa: E402
 from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
-from qdcnn.experiments.methods import TrainingOptions, get_method, with_head  # noqa: E402
 from qdcnn.experiments.noise.direction import direction_sweep  # noqa: E402
 
 OPTIONS = TrainingOptions(

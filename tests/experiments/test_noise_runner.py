@@ -16,8 +16,9 @@ from qdcnn.config import SHADOW_THRESHOLD_GRID, PipelineConfig, ShadowConfig
 from qdcnn.data.frames import load_frameset
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.data.labels import STRAIGHT
+from qdcnn.direction.methods import DirectionMethod, register, unregister
+from qdcnn.direction.protocol import ContiguousKFold, majority_baseline
 from qdcnn.errors import ParameterError
-from qdcnn.experiments.methods import DirectionMethod, register, unregister
 from qdcnn.experiments.noise import (
     NoiseSweepSpec,
     predict_folds,
@@ -26,10 +27,9 @@ from qdcnn.experiments.noise import (
     split_train_test,
     synthetic_shadow_set,
 )
-from qdcnn.experiments.protocol import ContiguousKFold, majority_baseline
-from qdcnn.experiments.reporting import Collector
 from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.execute import run_probabilities
+from qdcnn.runtime.reporting import Collector
 from qdcnn.vision.shadow_training import train_shadow_model
 
 

@@ -19,10 +19,9 @@ import pytest
 from sklearn.base import BaseEstimator, ClassifierMixin
 
 from qdcnn.config import PipelineConfig
+from qdcnn.direction.methods import DirectionMethod, register, unregister
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
-from qdcnn.experiments.methods import DirectionMethod, register, unregister
-from qdcnn.experiments.paper_values import ACCURACY
 from qdcnn.experiments.report import named_options_config
 from qdcnn.experiments.reproduce import (
     PAGE_ORDER,
@@ -34,6 +33,7 @@ from qdcnn.experiments.reproduce import (
 )
 from qdcnn.experiments.reproduce import runner as runner_module
 from qdcnn.experiments.reproduce.figures import representative
+from qdcnn.experiments.reproduce.paper_values import ACCURACY
 from qdcnn.experiments.reproduce.runner import SectionDef
 
 MISSING = "/nonexistent/qdcnn-recording"

@@ -376,7 +376,7 @@ def test_predict_many_shots_noise_and_bad_models(folds: tuple) -> None:
 def test_train_noise_is_saved_by_label_in_model_headers() -> None:
     # model files keep estimator parameters as JSON (noise models by their label); the
     # fitted arrays' round trip is tested with the model files themselves
-    from qdcnn.experiments.direction_model import _params_from_json, _params_to_json
+    from qdcnn.direction.model import _params_from_json, _params_to_json
 
     noise = NoiseSpec("phase-damping", 0.25, readout=0.01)
     params = UUDirectionClassifier(shots=None, train_noise=noise).get_params()

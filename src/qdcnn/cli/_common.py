@@ -28,7 +28,7 @@ from rich.progress import (
 )
 
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.reporting import Advance, Failure, Reporter
+from qdcnn.runtime.reporting import Advance, Failure, Reporter
 
 try:  # Typer 0.24+ carries its own copy of click and does not install click
     from typer import _click as click

@@ -21,11 +21,11 @@ from qdcnn.cli._common import (
     out,
 )
 from qdcnn.config import PipelineConfig
+from qdcnn.direction.methods import TrainingOptions, with_head
 from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.experiments.detect_lanes import DetectLanesResult, DetectLanesSpec, detect_lanes
-from qdcnn.experiments.direction_model import TrainDirectionSpec, train_direction
 from qdcnn.experiments.evaluate import EvaluationResult, EvaluationSpec, run_evaluation
-from qdcnn.experiments.methods import TrainingOptions, with_head
+from qdcnn.experiments.train_direction import TrainDirectionSpec, train_direction
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
 InnerOpt = Annotated[

@@ -11,7 +11,7 @@ from rich.table import Table
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.run import RunSpec, run
-from qdcnn.experiments.video_run import RunOptions, RunResult
+from qdcnn.runtime.engine import RunOptions, RunResult
 
 
 def run_cmd(

@@ -24,7 +24,7 @@ import numpy as np
 
 from qdcnn._validation import check_int, check_optional_shots, check_seed
 from qdcnn.errors import ParameterError
-from qdcnn.experiments.reporting import Reporter
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
     "CIRCUIT_KINDS",
@@ -223,7 +223,7 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
 
 
 def _trained_head(path: Path) -> tuple[Any, bool]:
-    from qdcnn.experiments.direction_model import DirectionModel
+    from qdcnn.direction.model import DirectionModel
 
     model = DirectionModel.load(path)
     network = getattr(model.estimator, "model_", None)

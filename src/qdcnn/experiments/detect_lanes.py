@@ -23,18 +23,18 @@ from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.data.images import encode_image, list_images, read_image
 from qdcnn.data.labels import DIRECTIONS
-from qdcnn.errors import InputError
-from qdcnn.experiments.default_model import (
+from qdcnn.direction.builtin import (
     DEFAULT_METHOD,
     DEFAULT_TRAINING_DATA,
     default_direction_model,
     describe_default_model,
 )
-from qdcnn.experiments.direction_model import DirectionModel
-from qdcnn.experiments.methods import get_method
-from qdcnn.experiments.reporting import Reporter
-from qdcnn.experiments.resume import ResumableBatch
+from qdcnn.direction.methods import get_method
+from qdcnn.direction.model import DirectionModel
+from qdcnn.errors import InputError
 from qdcnn.experiments.shadow_batch import note_shared_stems
+from qdcnn.runtime.reporting import Reporter
+from qdcnn.runtime.resume import ResumableBatch
 
 __all__ = [
     "DetectLanesResult",

@@ -1,7 +1,7 @@
 """``qdcnn evaluate``: cross-validated direction accuracy, the paper's accuracy table.
 
-Every method of the registry (:mod:`qdcnn.experiments.methods`) is evaluated by the one
-protocol of :mod:`qdcnn.experiments.protocol`: contiguous folds with a gap, the method's
+Every method of the registry (:mod:`qdcnn.direction.methods`) is evaluated by the one
+protocol of :mod:`qdcnn.direction.protocol`: contiguous folds with a gap, the method's
 hyperparameters chosen by an inner contiguous CV (with the gap) on the training folds
 only, accuracy pooled over all test frames. Lane methods read the cached lane features of
 the readable frames; frame methods (CNNs) read the frames themselves.
@@ -21,20 +21,20 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
 from qdcnn.data.labels import check_labels_usable
-from qdcnn.experiments.lane_data import LaneData, load_lane_data
-from qdcnn.experiments.methods import (
+from qdcnn.direction.lane_data import LaneData, load_lane_data
+from qdcnn.direction.methods import (
     DirectionMethod,
     TrainingOptions,
     get_method,
     select_methods,
 )
-from qdcnn.experiments.protocol import (
+from qdcnn.direction.protocol import (
     ContiguousKFold,
     MethodResult,
     cross_validate,
     summarise,
 )
-from qdcnn.experiments.reporting import Reporter
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
     "EvaluationResult",
@@ -60,7 +60,7 @@ def evaluate_features(
 ) -> MethodResult:
     """Cross-validate one lane method on precomputed lane features ``X`` with labels ``y``.
 
-    ``executor`` (:class:`~qdcnn.experiments.scheduler.Executor`) runs the folds on a
+    ``executor`` (:class:`~qdcnn.runtime.scheduler.Executor`) runs the folds on a
     Dask cluster; the result is the same as in this process.
     """
     m = get_method(method) if isinstance(method, str) else method
@@ -163,7 +163,7 @@ class EvaluationSpec:
     config : PipelineConfig
         Pipeline and classifier settings (``PipelineConfig.from_options``).
     folds, gap, inner_folds : int
-        The protocol of :mod:`qdcnn.experiments.protocol`.
+        The protocol of :mod:`qdcnn.direction.protocol`.
     training : TrainingOptions
         Settings of frame methods (epochs, weights, threads).
     use_cache : bool
@@ -172,7 +172,7 @@ class EvaluationSpec:
         What ``all`` may include; ``None`` asks the installation.
     scheduler : str or None
         Where the folds run: ``None`` (this process), ``local:N`` or ``tcp://HOST:PORT``
-        (:class:`~qdcnn.experiments.scheduler.Executor`, the ``dask`` extra).
+        (:class:`~qdcnn.runtime.scheduler.Executor`, the ``dask`` extra).
     """
 
     data: str
@@ -258,13 +258,13 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
 
 
 def executor_for(scheduler: str | None) -> Any:
-    """A context giving the :class:`~qdcnn.experiments.scheduler.Executor` of ``scheduler``
+    """A context giving the :class:`~qdcnn.runtime.scheduler.Executor` of ``scheduler``
     (``None``: no executor, everything in this process)."""
     from contextlib import nullcontext
 
     if scheduler is None:
         return nullcontext(None)
-    from qdcnn.experiments.scheduler import Executor
+    from qdcnn.runtime.scheduler import Executor
 
     return Executor(scheduler)
 

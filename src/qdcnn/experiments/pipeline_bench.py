@@ -27,9 +27,9 @@ from qdcnn._optional import has_torch
 from qdcnn._validation import check_int
 from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
 from qdcnn.data.frames import load_frameset
-from qdcnn.experiments.direction_model import default_config, train_direction_model
-from qdcnn.experiments.features import compute_features
-from qdcnn.experiments.methods import get_method
+from qdcnn.direction.features import compute_features
+from qdcnn.direction.methods import get_method
+from qdcnn.direction.model import default_config, train_direction_model
 from qdcnn.pipeline import auto_lanes, process_frame, recording_sample
 
 

@@ -10,13 +10,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from qdcnn.experiments.reporting import Reporter
 from qdcnn.experiments.reproduce import (
     ReproduceSpec,
     StageReporter,
     named_options_config,
     run_reproduce,
 )
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["named_options_config", "run_demo"]
 

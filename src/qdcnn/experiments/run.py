@@ -1,11 +1,11 @@
 """``qdcnn run``: dashcam videos, image folders and recordings to per-frame decisions.
 
-One runner over :func:`qdcnn.experiments.video_run.run_inputs`: the inputs are video
+One runner over :func:`qdcnn.runtime.engine.run_inputs`: the inputs are video
 files, image folders or dataset specs (``udacity:PATH``, ``carla:PATH``,
 ``synthetic:PRESET[:N]``); the per-frame work is the pipeline and a direction model
 (a model file of any registered method, or the default model of ``--method``), through
-:class:`~qdcnn.experiments.video_processor.LaneDirectionProcessor`; the chunks run in this
-process or on a Dask cluster (:class:`~qdcnn.experiments.scheduler.Executor`).
+:class:`~qdcnn.direction.processor.LaneDirectionProcessor`; the chunks run in this
+process or on a Dask cluster (:class:`~qdcnn.runtime.scheduler.Executor`).
 """
 
 from __future__ import annotations
@@ -17,15 +17,15 @@ from typing import Any
 
 from qdcnn._validation import check_seed
 from qdcnn.data.frames import load_frameset, parse_spec
-from qdcnn.experiments.default_model import (
+from qdcnn.direction.builtin import (
     DEFAULT_METHOD,
     default_direction_model,
     describe_default_model,
 )
-from qdcnn.experiments.direction_model import DirectionModel
-from qdcnn.experiments.methods import get_method
-from qdcnn.experiments.reporting import Failure, Reporter
-from qdcnn.experiments.video_run import InputResult, Progress, RunOptions, RunResult, run_inputs
+from qdcnn.direction.methods import get_method
+from qdcnn.direction.model import DirectionModel
+from qdcnn.runtime.engine import InputResult, Progress, RunOptions, RunResult, run_inputs
+from qdcnn.runtime.reporting import Failure, Reporter
 
 __all__ = ["RunSpec", "run"]
 
@@ -44,7 +44,7 @@ class RunSpec:
         Output folder (``<name>/frames.csv``, ``timings.csv``, ``overlay.mp4``, ``summary.json``).
     model : Path or None
         A direction model file (``train-direction``); ``None``: the built-in model of
-        ``method`` (:func:`~qdcnn.experiments.default_model.default_direction_model`).
+        ``method`` (:func:`~qdcnn.direction.builtin.default_direction_model`).
     method : str
         The registered lane method of the built-in model, used when no model is given.
     options : RunOptions
@@ -70,8 +70,8 @@ class RunSpec:
 
 def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     """Process every input of ``spec``; each input's result is reported as it finishes."""
-    from qdcnn.experiments.scheduler import Executor
-    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+    from qdcnn.direction.processor import LaneDirectionProcessor
+    from qdcnn.runtime.scheduler import Executor
 
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]

@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from qdcnn._validation import check_int
 from qdcnn.config import ShadowConfig
-from qdcnn.experiments.timing import time_per_item
 from qdcnn.quantum.hardware_time import PROFILES, estimate_time
+from qdcnn.runtime.timing import time_per_item
 from qdcnn.vision.baselines import detect_cbs, detect_ibt, detect_lbp
 from qdcnn.vision.shadows import block_grid, detect_shadows_uu
 

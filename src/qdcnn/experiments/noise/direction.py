@@ -1,11 +1,11 @@
 """Direction accuracy against noise strength: the paper's Fig. 7 (Sec. II-D; NOTES 7).
 
-The frames are split by the one protocol of :mod:`qdcnn.experiments.protocol`: contiguous
-folds (:class:`~qdcnn.experiments.protocol.ContiguousKFold`, frames within ``gap`` of a test
+The frames are split by the one protocol of :mod:`qdcnn.direction.protocol`: contiguous
+folds (:class:`~qdcnn.direction.protocol.ContiguousKFold`, frames within ``gap`` of a test
 block left out of training), so every frame is a test frame exactly once and no model sees
 its neighbours. Per fold, each method's estimator comes from the method registry
-(:mod:`qdcnn.experiments.methods`), its hyperparameters chosen by the inner contiguous
-search with the gap (:func:`~qdcnn.experiments.protocol.fit_with_search`).
+(:mod:`qdcnn.direction.methods`), its hyperparameters chosen by the inner contiguous
+search with the gap (:func:`~qdcnn.direction.protocol.fit_with_search`).
 
 By default each fold's model is trained once **without noise** and its test frames are
 then classified under every (channel, p): all folds' test circuits for one noise setting
@@ -19,7 +19,7 @@ Probabilities are exact (density matrix) unless ``shots`` is given; then they ar
 from that many shots per circuit, from a generator seeded by ``seed`` and the noise setting,
 so a run is reproducible. Accuracy is pooled over all test frames (frames without two lane
 lines count, predicted as the training majority class); the majority baseline is
-:func:`~qdcnn.experiments.protocol.majority_baseline`.
+:func:`~qdcnn.direction.protocol.majority_baseline`.
 
 The estimator protocol. Any registered method with ``quantum=True`` can be swept: its
 estimator's ``predict`` takes ``noise=`` (a :class:`~qdcnn.quantum.noise.NoiseSpec`), and for
@@ -43,8 +43,14 @@ from sklearn.base import clone
 from qdcnn._threads import single_thread
 from qdcnn._validation import check_optional_shots, check_probability
 from qdcnn.config import PipelineConfig
+from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method, method_names
+from qdcnn.direction.protocol import (
+    ContiguousKFold,
+    cross_validate,
+    fit_with_search,
+    majority_baseline,
+)
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.methods import DirectionMethod, TrainingOptions, get_method, method_names
 from qdcnn.experiments.noise._rng import point_rng
 from qdcnn.experiments.noise.options import (
     DIRECTION_METHODS,
@@ -53,12 +59,6 @@ from qdcnn.experiments.noise.options import (
     check_grid,
 )
 from qdcnn.experiments.noise.results import SweepRow
-from qdcnn.experiments.protocol import (
-    ContiguousKFold,
-    cross_validate,
-    fit_with_search,
-    majority_baseline,
-)
 from qdcnn.quantum.noise import PAPER_CHANNELS, NoiseSpec
 
 __all__ = [
@@ -172,7 +172,7 @@ def fit_direction_model(
 
     ``method`` is a registered name or a kind (``"uu"``, ``"vqc"``: the estimator does not
     depend on the grouping). The estimator and grid come from the registry with
-    ``config.seed = seed``; :func:`~qdcnn.experiments.protocol.fit_with_search` chooses and
+    ``config.seed = seed``; :func:`~qdcnn.direction.protocol.fit_with_search` chooses and
     refits on all of ``X``.
     """
     if isinstance(method, DirectionMethod):
@@ -280,7 +280,7 @@ def direction_sweep(
         Settings of frame methods (epochs, threads, context).
     executor : Executor, optional
         Where the folds and the (channel, p) points run
-        (:class:`qdcnn.experiments.scheduler.Executor`); the rows are the same either way.
+        (:class:`qdcnn.runtime.scheduler.Executor`); the rows are the same either way.
 
     Returns
     -------

@@ -6,7 +6,7 @@ message otherwise.
 
 Methods. ``uu`` and ``vqc`` are the paper's two direction classifiers, run on the lane
 features of every grouping asked for (``image-split`` by default); a registered method name
-of :mod:`qdcnn.experiments.methods` (``image-split-uu``, ``kmeans-vqc``, or any later
+of :mod:`qdcnn.direction.methods` (``image-split-uu``, ``kmeans-vqc``, or any later
 method with ``quantum=True``) names one classifier on its own inputs; ``uu-shadow`` is the
 UU-dagger shadow detector; ``all`` is ``uu``, ``vqc`` and ``uu-shadow``.
 """
@@ -18,8 +18,8 @@ from collections.abc import Sequence
 
 from qdcnn._validation import check_probability
 from qdcnn.config import PAPER_SHADOW_THRESHOLDS, SHADOW_THRESHOLD_GRID
+from qdcnn.direction.methods import GROUPINGS, get_method, method_names
 from qdcnn.errors import ParameterError
-from qdcnn.experiments.methods import GROUPINGS, get_method, method_names
 from qdcnn.quantum.noise import PAPER_CHANNELS, check_channel
 
 __all__ = [

@@ -1,11 +1,11 @@
 """``qdcnn noise-sweep`` as a library call: :class:`NoiseSweepSpec` in, :class:`NoiseSweepRun` out.
 
 :func:`run_noise_sweep` does everything the command does: it loads the direction data
-(:func:`~qdcnn.experiments.lane_data.load_lane_data`: frames, labels and lane features of
+(:func:`~qdcnn.direction.lane_data.load_lane_data`: frames, labels and lane features of
 the readable frames), sweeps the direction methods (:func:`~.direction.direction_sweep`),
 renders or loads the shadow images and sweeps the shadow detector
 (:func:`~.shadow.shadow_sweep`), and writes the figures. Long loops report progress and bad
-files are reported as failures through a :class:`~qdcnn.experiments.reporting.Reporter`;
+files are reported as failures through a :class:`~qdcnn.runtime.reporting.Reporter`;
 the result carries everything a front end prints (:meth:`NoiseSweepResult.tables`,
 :meth:`NoiseSweepResult.summary_lines`, :meth:`NoiseSweepRun.to_dicts`).
 
@@ -32,9 +32,10 @@ from qdcnn._validation import (
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
+from qdcnn.direction.methods import TrainingOptions, get_method, method_names
+from qdcnn.direction.protocol import ContiguousKFold
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.evaluate import executor_for
-from qdcnn.experiments.methods import TrainingOptions, get_method, method_names
 from qdcnn.experiments.noise.direction import FRAMES, SweepTarget, direction_sweep, sweep_targets
 from qdcnn.experiments.noise.options import (
     SHADOW_METHOD,
@@ -53,8 +54,7 @@ from qdcnn.experiments.noise.shadow import (
     split_train_test,
     synthetic_shadow_set,
 )
-from qdcnn.experiments.protocol import ContiguousKFold
-from qdcnn.experiments.reporting import Reporter
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["NoiseSweepRun", "NoiseSweepSpec", "run_noise_sweep"]
 
@@ -88,7 +88,7 @@ class NoiseSweepSpec:
     readout : float
         Readout error added at every point, in [0, 1].
     folds, gap, inner_folds : int
-        The protocol of :mod:`qdcnn.experiments.protocol` (``inner_folds=0``: no search).
+        The protocol of :mod:`qdcnn.direction.protocol` (``inner_folds=0``: no search).
     config : PipelineConfig
         Pipeline and classifier settings (its ``seed`` is replaced by :attr:`seed`).
     shadow_set : path or None
@@ -323,12 +323,12 @@ def _direction_inputs(
     """What the targets read, restricted to the frames all of them can use, and the labels.
 
     Lane methods read the lane features of their grouping (readable frames,
-    :func:`~qdcnn.experiments.lane_data.load_lane_data`); frame methods read the stacked
+    :func:`~qdcnn.direction.lane_data.load_lane_data`); frame methods read the stacked
     frames (frames of the first frame's size).
     """
     from qdcnn.data.frames import stack_images
     from qdcnn.data.labels import check_labels_usable
-    from qdcnn.experiments.lane_data import load_lane_data
+    from qdcnn.direction.lane_data import load_lane_data
 
     groupings = sorted({t.grouping for t in targets if t.grouping is not None})
     keep = np.ones(len(frames), dtype=bool)

@@ -1,9 +1,9 @@
 """Tables I, II and III: direction accuracy per method per dataset, next to the paper's.
 
-Every method of the registry (:mod:`qdcnn.experiments.methods`) gets a row, so methods
+Every method of the registry (:mod:`qdcnn.direction.methods`) gets a row, so methods
 registered later (hybrids) appear without changes here: lane methods always, frame
 methods (CNNs) when the run asks for them. Each is scored by the one protocol of
-:mod:`qdcnn.experiments.protocol` through :func:`~qdcnn.experiments.evaluate.evaluate_features`
+:mod:`qdcnn.direction.protocol` through :func:`~qdcnn.experiments.evaluate.evaluate_features`
 and :func:`~qdcnn.experiments.evaluate.evaluate_frames`, with the paper's pipeline and,
 for the profile's classifier kinds, with the named options.
 """
@@ -16,20 +16,20 @@ from typing import Any
 from qdcnn._optional import has_gpu, has_torch
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import class_balance
-from qdcnn.errors import QdcnnError
-from qdcnn.experiments.evaluate import evaluate_features, evaluate_frames
-from qdcnn.experiments.lane_data import LaneData
-from qdcnn.experiments.methods import (
+from qdcnn.direction.lane_data import LaneData
+from qdcnn.direction.methods import (
     DirectionMethod,
     TrainingOptions,
     get_method,
     method_names,
     select_methods,
 )
-from qdcnn.experiments.paper_values import COMPARISON, TEXT_DISAGREES, paper_accuracy
-from qdcnn.experiments.protocol import ContiguousKFold
+from qdcnn.direction.protocol import ContiguousKFold
+from qdcnn.errors import QdcnnError
+from qdcnn.experiments.evaluate import evaluate_features, evaluate_frames
 from qdcnn.experiments.reproduce.context import DatasetUnavailable, RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
+from qdcnn.experiments.reproduce.paper_values import COMPARISON, TEXT_DISAGREES, paper_accuracy
 from qdcnn.experiments.reproduce.spec import PAPER_CNNS, DatasetEntry
 
 __all__ = ["PROTOCOL", "accuracy_section", "comparison_section"]

@@ -16,12 +16,12 @@ from numpy.typing import NDArray
 
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset
+from qdcnn.direction.lane_data import LaneData, load_lane_data
+from qdcnn.direction.methods import GROUPINGS
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.lane_data import LaneData, load_lane_data
-from qdcnn.experiments.methods import GROUPINGS
-from qdcnn.experiments.reporting import Reporter
 from qdcnn.experiments.reproduce.model import Section
 from qdcnn.experiments.reproduce.spec import DatasetEntry, Profile, ReproduceSpec
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["DatasetUnavailable", "RunContext", "StageReporter", "named_options_config"]
 
@@ -162,7 +162,7 @@ class RunContext:
 
     def _load_shadow_set(self) -> Any:
         from qdcnn.data.shadow_set import load_shadow_set
-        from qdcnn.experiments.noise_sweep import synthetic_shadow_set
+        from qdcnn.experiments.noise import synthetic_shadow_set
 
         if self.spec.shadow_set is None:
             images, masks = synthetic_shadow_set(
@@ -181,7 +181,7 @@ class RunContext:
 
     def save_figure(self, fig: Any, name: str) -> str:
         """Write a matplotlib figure to ``figures/<name>.png``; the path relative to the report."""
-        from qdcnn.experiments.noise_plot import save_figure
+        from qdcnn.experiments.noise.plot import save_figure
 
         rel = f"figures/{name}.png"
         save_figure(fig, self.out / rel, dpi=110)

@@ -1,10 +1,10 @@
 """Fig. 7: direction accuracy against noise strength for the six channels, and the shadow BER.
 
-Runs :func:`qdcnn.experiments.noise_sweep.direction_sweep` on each dataset's lane features
+Runs :func:`qdcnn.experiments.noise.direction_sweep` on each dataset's lane features
 (models trained without noise, evaluated under each channel and strength with exact
 density-matrix probabilities, the protocol's contiguous folds) and
-:func:`~qdcnn.experiments.noise_sweep.shadow_sweep` on the shadow set; figures by
-:mod:`qdcnn.experiments.noise_plot`, with the points the paper's text states marked.
+:func:`~qdcnn.experiments.noise.shadow_sweep` on the shadow set; figures by
+:mod:`qdcnn.experiments.noise.plot`, with the points the paper's text states marked.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from __future__ import annotations
 from typing import Any
 
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.paper_values import NOISE_POINTS, NOISE_TEXT
 from qdcnn.experiments.reproduce.accuracy import PROTOCOL
 from qdcnn.experiments.reproduce.context import DatasetUnavailable, RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
+from qdcnn.experiments.reproduce.paper_values import NOISE_POINTS, NOISE_TEXT
 from qdcnn.experiments.reproduce.spec import DatasetEntry
 
 __all__ = ["noise_section"]
@@ -59,8 +59,8 @@ def noise_section(ctx: RunContext, section: Section) -> None:
 def _direction(
     ctx: RunContext, section: Section, entry: DatasetEntry, channels: tuple[str, ...]
 ) -> list[dict[str, Any]]:
-    from qdcnn.experiments import noise_sweep as ns
-    from qdcnn.experiments.noise_plot import accuracy_figure
+    from qdcnn.experiments import noise as ns
+    from qdcnn.experiments.noise.plot import accuracy_figure
     from qdcnn.experiments.reproduce.plots import mark_paper_noise_points
 
     lanes = ctx.lane_data(entry, "paper")
@@ -148,8 +148,8 @@ def _direction_table(result: Any, entry: DatasetEntry) -> tuple[list[str], list[
 
 
 def _shadow(ctx: RunContext, section: Section, channels: tuple[str, ...]) -> dict[str, Any]:
-    from qdcnn.experiments import noise_sweep as ns
-    from qdcnn.experiments.noise_plot import shadow_figure
+    from qdcnn.experiments import noise as ns
+    from qdcnn.experiments.noise.plot import shadow_figure
 
     name, images, masks, _ = ctx.shadow_set()
     tr, te = ns.split_train_test(len(images))

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.experiments.paper_values import NOISE_POINTS, paper_accuracy
+from qdcnn.experiments.reproduce.paper_values import NOISE_POINTS, paper_accuracy
 
 __all__ = [
     "accuracy_bars",

@@ -26,8 +26,7 @@ from qdcnn._fileio import atomic_write_text
 from qdcnn._optional import has_gpu
 from qdcnn.batch import Failure
 from qdcnn.errors import InputError, ParameterError, QdcnnError
-from qdcnn.experiments import paper_values
-from qdcnn.experiments.reporting import Reporter
+from qdcnn.experiments.reproduce import paper_values
 from qdcnn.experiments.reproduce.accuracy import accuracy_section, comparison_section
 from qdcnn.experiments.reproduce.context import RunContext, StageReporter
 from qdcnn.experiments.reproduce.figures import (
@@ -42,6 +41,7 @@ from qdcnn.experiments.reproduce.shadows import shadow_section
 from qdcnn.experiments.reproduce.spec import ReproduceSpec
 from qdcnn.experiments.reproduce.timing import timing_section
 from qdcnn.experiments.reproduce.training import cnn_section, vqc_section
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["PAGE_ORDER", "SECTIONS", "ReproduceResult", "run_reproduce"]
 

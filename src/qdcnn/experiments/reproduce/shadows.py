@@ -70,7 +70,7 @@ def _detectors(
 
 def shadow_section(ctx: RunContext, section: Section) -> None:
     """Score every detector on the test half of the shadow set."""
-    from qdcnn.experiments.noise_sweep import split_train_test
+    from qdcnn.experiments.noise import split_train_test
     from qdcnn.experiments.reproduce.plots import image_grid
     from qdcnn.vision.metrics import confusion_counts, shadow_scores
     from qdcnn.vision.overlays import draw_shadow_overlay

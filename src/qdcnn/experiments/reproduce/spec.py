@@ -19,8 +19,8 @@ from typing import Any
 from qdcnn._validation import check_int, check_seed
 from qdcnn.data.frames import parse_spec
 from qdcnn.errors import ParameterError
-from qdcnn.experiments.noise_sweep import PAPER_STRENGTHS
-from qdcnn.experiments.paper_values import DATASET_LABELS, DATASET_TITLES
+from qdcnn.experiments.noise import PAPER_STRENGTHS
+from qdcnn.experiments.reproduce.paper_values import DATASET_LABELS, DATASET_TITLES
 
 __all__ = [
     "FULL",
@@ -196,7 +196,7 @@ PAPER_CNNS = ("dnn-pilotnet", "dnn-resnet50")
 
 def check_cnn_methods(value: str) -> None:
     """``paper``, ``all`` or a comma list of registered frame methods."""
-    from qdcnn.experiments.methods import get_method
+    from qdcnn.direction.methods import get_method
 
     if value in ("paper", "all"):
         return

@@ -11,9 +11,9 @@ from __future__ import annotations
 from typing import Any
 
 from qdcnn._optional import has_module
-from qdcnn.experiments.paper_values import TIMING_SECONDS
 from qdcnn.experiments.reproduce.context import RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
+from qdcnn.experiments.reproduce.paper_values import TIMING_SECONDS
 
 __all__ = ["timing_section"]
 

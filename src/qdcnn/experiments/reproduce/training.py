@@ -12,13 +12,13 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn.direction.methods import get_method, method_names
+from qdcnn.direction.protocol import fit_with_search
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.methods import get_method, method_names
-from qdcnn.experiments.paper_values import CNN_TRAINING, DATASET_TITLES
-from qdcnn.experiments.protocol import fit_with_search
 from qdcnn.experiments.reproduce.accuracy import PROTOCOL, frame_methods
 from qdcnn.experiments.reproduce.context import DatasetUnavailable, RunContext
 from qdcnn.experiments.reproduce.model import Cell, Section, cell
+from qdcnn.experiments.reproduce.paper_values import CNN_TRAINING, DATASET_TITLES
 
 __all__ = ["cnn_section", "vqc_section"]
 

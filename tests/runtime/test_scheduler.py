@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from qdcnn.errors import InputError, MissingExtraError, ParameterError
-from qdcnn.experiments.scheduler import Executor, TaskFailure, parse_scheduler
+from qdcnn.runtime.scheduler import Executor, TaskFailure, parse_scheduler
 
 
 def square_or_fail(x: int, offset: int) -> int:

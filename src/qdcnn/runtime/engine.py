@@ -6,7 +6,7 @@ input ``DIR/<name>/frames.csv``, ``DIR/<name>/timings.csv``, optionally
 ``DIR/<name>/overlay.mp4``, and ``DIR/summary.json``.
 
 Chunks. Each input is cut into chunks of ``chunk_frames`` frames (512 by default), the unit
-of resuming and of distribution (:class:`qdcnn.experiments.scheduler.Executor`). A chunk's
+of resuming and of distribution (:class:`qdcnn.runtime.scheduler.Executor`). A chunk's
 rows, timings and overlay segment are written atomically into ``DIR/<name>/.chunks/`` and
 then recorded in the folder's manifest (:mod:`qdcnn.outputs`); when all chunks are there,
 the final files are assembled (rows concatenated, the overlay segments remuxed into one
@@ -27,7 +27,7 @@ frame's share of its batch of :data:`BATCH_FRAMES`) and ``overlay_ms`` (drawing 
 encoding), **measured**, different on every run.
 
 The processor is injected (:class:`FrameProcessor`);
-:class:`qdcnn.experiments.video_processor.LaneDirectionProcessor` is today's pipeline
+:class:`qdcnn.direction.processor.LaneDirectionProcessor` is today's pipeline
 (UU-dagger shadow detection and removal, lanes, a fitted direction model).
 """
 
@@ -62,8 +62,8 @@ from qdcnn.data.video import (
     is_video_file,
 )
 from qdcnn.errors import InputError, ParameterError, QdcnnError
-from qdcnn.experiments.scheduler import Executor, TaskFailure
 from qdcnn.outputs import OutputFolder, config_hash, file_identity
+from qdcnn.runtime.scheduler import Executor, TaskFailure
 
 CHUNK_FRAMES = 512
 FRAMES_CSV, TIMINGS_CSV, OVERLAY, SUMMARY = (

@@ -27,7 +27,7 @@ from qdcnn import __version__
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
-from qdcnn.experiments import feature_cache
+from qdcnn.direction import feature_cache
 from qdcnn.pipeline import GROUPINGS, FrameResult, process_frame
 from qdcnn.quantum.sampling import as_generator
 from qdcnn.vision.grouping import feature_names

@@ -1,4 +1,4 @@
-"""Today's per-frame pipeline as a :class:`~qdcnn.experiments.video_run.FrameProcessor`.
+"""Today's per-frame pipeline as a :class:`~qdcnn.runtime.engine.FrameProcessor`.
 
 :class:`LaneDirectionProcessor` runs UU-dagger shadow detection and removal, the lane stage
 and a fitted direction model on each frame, and draws the video overlay (shadow tint, lane
@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.experiments.video_run import FrameOutcome
+from qdcnn.runtime.engine import FrameOutcome
 
 
 class LaneDirectionProcessor:
@@ -33,7 +33,7 @@ class LaneDirectionProcessor:
     (:func:`draw_video_overlay`).
 
     The model source is one attribute (``model``, a
-    :class:`qdcnn.experiments.direction_model.DirectionModel`), so it can come from a file,
+    :class:`qdcnn.direction.model.DirectionModel`), so it can come from a file,
     from :meth:`train` or, later, from the method registry.
     """
 
@@ -65,9 +65,9 @@ class LaneDirectionProcessor:
         """Fit lane method ``method`` on ``data`` (dataset specs) with the default settings.
 
         Without arguments this is the built-in default model of ``qdcnn run``
-        (:mod:`qdcnn.experiments.default_model`), read from the cache when there.
+        (:mod:`qdcnn.direction.builtin`), read from the cache when there.
         """
-        from qdcnn.experiments import default_model as dm
+        from qdcnn.direction import builtin as dm
 
         specs = dm.DEFAULT_TRAINING_DATA if data is None else data
         model = dm.default_direction_model(method or dm.DEFAULT_METHOD, seed, data=specs)

@@ -25,11 +25,11 @@ import numpy as np
 
 from qdcnn import __version__
 from qdcnn.config import PipelineConfig
+from qdcnn.direction.features import cache_dir, code_fingerprint
+from qdcnn.direction.methods import DirectionMethod, get_method
+from qdcnn.direction.model import DirectionModel, train_direction_model
+from qdcnn.direction.protocol import cross_validate, majority_baseline, pooled_accuracy
 from qdcnn.errors import InputError
-from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
-from qdcnn.experiments.features import cache_dir, code_fingerprint
-from qdcnn.experiments.methods import DirectionMethod, get_method
-from qdcnn.experiments.protocol import cross_validate, majority_baseline, pooled_accuracy
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -111,7 +111,7 @@ def describe_default_model(model: DirectionModel) -> str:
 
 
 def _train_and_score(info: DirectionMethod, specs: tuple[str, ...], seed: int) -> DirectionModel:
-    from qdcnn.experiments.lane_data import load_lane_data
+    from qdcnn.direction.lane_data import load_lane_data
 
     assert info.grouping is not None
     config = PipelineConfig(seed=seed)

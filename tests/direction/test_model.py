@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from qdcnn.config import PipelineConfig
+from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError
-from qdcnn.experiments.direction_model import DirectionModel, train_direction_model
 from qdcnn.persistence import load_model, save_model
 
 
@@ -94,7 +94,7 @@ def test_damaged_headers_are_named(tmp_path: Path) -> None:
 
 def test_a_cnn_direction_model_round_trips(tmp_path: Path) -> None:
     pytest.importorskip("torch")
-    from qdcnn.experiments.methods import TrainingOptions
+    from qdcnn.direction.methods import TrainingOptions
 
     rng = np.random.default_rng(0)
     images = rng.integers(0, 255, (24, 40, 80, 3), dtype=np.uint8)

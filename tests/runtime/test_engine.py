@@ -17,14 +17,14 @@ from video_fakes import BatchHalvesProcessor, HalvesProcessor, ListSource, write
 from qdcnn.data.images import write_image
 from qdcnn.data.video import VideoReader
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.experiments.video_run import (
+from qdcnn.outputs import OutputFolder, OutputLockedError
+from qdcnn.runtime.engine import (
     FRAMES_CSV,
     Progress,
     RunOptions,
     majority_vote,
     run_inputs,
 )
-from qdcnn.outputs import OutputFolder, OutputLockedError
 
 pytest.importorskip("av")
 
@@ -134,7 +134,7 @@ KILLED_RUN = textwrap.dedent(
     import os, signal, sys
     sys.path[:0] = [{src!r}, {here!r}]
     from video_fakes import HalvesProcessor
-    from qdcnn.experiments.video_run import RunOptions, run_inputs
+    from qdcnn.runtime.engine import RunOptions, run_inputs
 
     mode, n = sys.argv[1], int(sys.argv[2])
     calls = [0]
@@ -356,7 +356,7 @@ def test_a_batch_processor_gets_batches_and_gives_the_same_rows(
 def test_the_lane_pipeline_processor_gives_each_frame_its_own_result(tmp_path: Path) -> None:
     from qdcnn.data.synthetic import iter_drive
     from qdcnn.data.writers import write_video
-    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+    from qdcnn.direction.processor import LaneDirectionProcessor
 
     processor = LaneDirectionProcessor.train("image-split-uu", data="synthetic:track1:80")
     path = write_video(iter_drive("track2", 20, seed=3), tmp_path / "drive.mp4")
@@ -383,7 +383,7 @@ def test_local_cluster_with_a_killed_worker_gives_identical_output(
     clip: Path, reference: bytes, tmp_path: Path
 ) -> None:
     pytest.importorskip("distributed")
-    from qdcnn.experiments.scheduler import Executor
+    from qdcnn.runtime.scheduler import Executor
 
     marker = tmp_path / "killed.txt"
     processor = HalvesProcessor(kill_at=21, marker=str(marker))

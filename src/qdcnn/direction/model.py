@@ -1,7 +1,7 @@
-"""``qdcnn train-direction``: a trained direction model, its file format and its training.
+"""A trained direction model, its file format and its training.
 
 A :class:`DirectionModel` is a fitted estimator of a registered method
-(:mod:`qdcnn.experiments.methods`) together with the pipeline settings that made its
+(:mod:`qdcnn.direction.methods`) together with the pipeline settings that made its
 inputs. It is saved in the project's one data-only format (:mod:`qdcnn.persistence`):
 the method, config, estimator parameters and training summary in the JSON header, the
 fitted arrays as safetensors. Loading rebuilds the estimator through the registry and
@@ -19,14 +19,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from qdcnn._validation import check_int
-from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import DIRECTIONS, class_balance
+from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method
+from qdcnn.direction.protocol import fit_with_search
 from qdcnn.errors import InputError, ParameterError, QdcnnError
-from qdcnn.experiments.methods import DirectionMethod, TrainingOptions, get_method
-from qdcnn.experiments.protocol import fit_with_search
-from qdcnn.experiments.reporting import Reporter
 from qdcnn.persistence import (
     estimator_state,
     load_model,
@@ -36,10 +33,7 @@ from qdcnn.persistence import (
 
 __all__ = [
     "DirectionModel",
-    "TrainDirectionResult",
-    "TrainDirectionSpec",
     "default_config",
-    "train_direction",
     "train_direction_model",
 ]
 
@@ -241,7 +235,7 @@ def train_direction_model(
     """Fit ``method`` on ``inputs`` (lane features or frames), hyperparameters by inner CV.
 
     The grid values are chosen by the contiguous inner cross-validation that
-    ``qdcnn evaluate`` runs in each fold (:func:`~qdcnn.experiments.protocol.fit_with_search`),
+    ``qdcnn evaluate`` runs in each fold (:func:`~qdcnn.direction.protocol.fit_with_search`),
     then the estimator is refitted on all of ``inputs``.
     """
     m = get_method(method) if isinstance(method, str) else method
@@ -256,88 +250,3 @@ def train_direction_model(
         "chosen_hyperparameters": chosen,
     }
     return DirectionModel(m.name, config, fitted, trained_on, summary)
-
-
-@dataclass(frozen=True)
-class TrainDirectionSpec:
-    """What ``qdcnn train-direction`` runs."""
-
-    data: str
-    out: Path
-    method: str = "image-split-uu"
-    config: PipelineConfig = field(default_factory=PipelineConfig)
-    inner_folds: int = 3
-    gap: int = 5
-    training: TrainingOptions = field(default_factory=TrainingOptions)
-    use_cache: bool = True
-
-    def __post_init__(self) -> None:
-        get_method(self.method)
-        check_int("gap", self.gap, 0, 10_000)
-        if self.inner_folds != 0:
-            check_int("inner_folds", self.inner_folds, 2, 100)
-
-
-@dataclass
-class TrainDirectionResult:
-    """The trained model, where it went, and the frames left out."""
-
-    model: DirectionModel
-    path: Path
-    failures: list[Failure]
-
-    @property
-    def exit_code(self) -> int:
-        return 1 if self.failures else 0
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "model": str(self.path),
-            "method": self.model.method,
-            "data": self.model.trained_on,
-            **self.model.summary,
-            "failures": [f.to_dict() for f in self.failures],
-        }
-
-
-def train_direction(
-    spec: TrainDirectionSpec, reporter: Reporter | None = None
-) -> TrainDirectionResult:
-    """Train ``spec.method`` on every readable frame of ``spec.data`` and save it."""
-    from qdcnn.data.frames import load_frameset, stack_images
-    from qdcnn.experiments.lane_data import load_lane_data
-
-    report = reporter or Reporter()
-    method = get_method(spec.method)
-    if method.inputs == "lanes":
-        assert method.grouping is not None
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
-        with report.progress(len(frames), f"lane features ({frames.name})") as advance:
-            lanes = load_lane_data(
-                frames, spec.config, (method.grouping,), use_cache=spec.use_cache, on_frame=advance
-            )
-        inputs: Any = lanes.features(method.grouping)
-        y, failures = lanes.y, lanes.failures
-    else:
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
-        images, readable, unreadable = stack_images(frames)
-        inputs, y = images[readable], frames.labels(spec.config.labels)[readable]
-        failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable
-    for f in failures:
-        report.failure(f)
-    model = train_direction_model(
-        method,
-        inputs,
-        y,
-        spec.config,
-        spec.data,
-        inner_folds=spec.inner_folds,
-        gap=spec.gap,
-        options=spec.training,
-    )
-    path = model.save(spec.out)
-    return TrainDirectionResult(model, path, failures)

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from sklearn.base import BaseEstimator, ClassifierMixin
 
-from qdcnn.errors import ParameterError
-from qdcnn.experiments.protocol import (
+from qdcnn.direction.protocol import (
     ContiguousKFold,
     CrossValidation,
     fit_with_search,
@@ -17,6 +16,7 @@ from qdcnn.experiments.protocol import (
     pooled_accuracy,
     summarise,
 )
+from qdcnn.errors import ParameterError
 
 
 @pytest.mark.parametrize(("n", "k", "gap"), [(100, 5, 0), (103, 4, 5), (50, 10, 2)])

@@ -108,7 +108,7 @@ def cross_validate(
     ----------
     build : callable
         Returns a fresh ``(estimator, grid)`` (the method registry's
-        :meth:`~qdcnn.experiments.methods.DirectionMethod.build`).
+        :meth:`~qdcnn.direction.methods.DirectionMethod.build`).
     X : array_like
         Lane features ``(N, F)`` or frames ``(N, H, W, 3)``; indexed by row.
     y : ndarray of int
@@ -120,7 +120,7 @@ def cross_validate(
     on_fold : callable, optional
         Called with the fold index after each fold.
     executor : Executor, optional
-        Where the folds run (:class:`qdcnn.experiments.scheduler.Executor`: this
+        Where the folds run (:class:`qdcnn.runtime.scheduler.Executor`: this
         process, or workers of a Dask cluster); the results are the same either way.
     """
     y = np.asarray(y, dtype=np.int64)

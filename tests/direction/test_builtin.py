@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qdcnn.errors import InputError
-from qdcnn.experiments.default_model import (
+from qdcnn.direction.builtin import (
     DEFAULT_METHOD,
     default_direction_model,
     default_model_path,
 )
+from qdcnn.errors import InputError
 from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
 
 SMALL = ("synthetic:track1:100", "synthetic:rain:100")
@@ -40,7 +40,7 @@ def test_the_second_use_reads_the_cached_file(cache: Path, monkeypatch) -> None:
     first = default_direction_model(DEFAULT_METHOD, 0, data=SMALL)
     path = default_model_path(DEFAULT_METHOD, 0, SMALL)
     assert path.is_file() and path.parent == cache / "models"
-    import qdcnn.experiments.default_model as dm
+    import qdcnn.direction.builtin as dm
 
     def no_training(*_: object) -> None:
         raise AssertionError("trained again")
@@ -80,8 +80,8 @@ def test_no_cache_writes_nothing_and_image_methods_need_a_file(cache: Path) -> N
 def test_the_video_processor_defaults_to_the_built_in_model(
     cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from qdcnn.experiments import default_model
-    from qdcnn.experiments.video_processor import LaneDirectionProcessor
+    from qdcnn.direction import builtin as default_model
+    from qdcnn.direction.processor import LaneDirectionProcessor
 
     monkeypatch.setattr(default_model, "DEFAULT_TRAINING_DATA", SMALL)
     processor = LaneDirectionProcessor.train()

@@ -3,7 +3,7 @@
 Every value is copied from ``shared/paper/qdcnn-paper.tex`` (tables and the text of
 Sec. III) and NOTES section 8; nothing here is computed. Keys are the names qdcnn uses:
 dataset labels ``track1``, ``track2``, ``carla`` and the registered method names of
-:mod:`qdcnn.experiments.methods` (the paper's DNN is ``dnn-resnet50``).
+:mod:`qdcnn.direction.methods` (the paper's DNN is ``dnn-resnet50``).
 
 Where the paper's text and its table disagree, the table is kept and the text's value is
 listed in :data:`TEXT_DISAGREES` (Table I vs Sec. III-C and III-D).

@@ -12,8 +12,7 @@ from typer.testing import CliRunner
 
 from qdcnn.cli import app
 from qdcnn.config import PipelineConfig
-from qdcnn.errors import ParameterError
-from qdcnn.experiments.methods import (
+from qdcnn.direction.methods import (
     GROUPINGS,
     DirectionMethod,
     get_method,
@@ -22,6 +21,7 @@ from qdcnn.experiments.methods import (
     select_methods,
     unregister,
 )
+from qdcnn.errors import ParameterError
 
 runner = CliRunner()
 

@@ -18,7 +18,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset
 from qdcnn.data.labels import check_labels_usable
-from qdcnn.experiments.features import FeatureTable, compute_features
+from qdcnn.direction.features import FeatureTable, compute_features
 
 __all__ = ["LaneData", "load_lane_data"]
 

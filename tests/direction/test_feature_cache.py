@@ -16,8 +16,7 @@ import pytest
 
 from qdcnn.batch import Failure
 from qdcnn.data.frames import load_frameset
-from qdcnn.experiments.direction_model import default_config
-from qdcnn.experiments.feature_cache import (
+from qdcnn.direction.feature_cache import (
     CachedFeatures,
     FeatureCacheWarning,
     entry_path,
@@ -25,7 +24,8 @@ from qdcnn.experiments.feature_cache import (
     read_entry,
     write_entry,
 )
-from qdcnn.experiments.features import compute_features
+from qdcnn.direction.features import compute_features
+from qdcnn.direction.model import default_config
 
 GROUPINGS = ("image-split", "kmeans")
 SRC = Path(__file__).resolve().parents[2] / "src"
@@ -208,7 +208,7 @@ WRITER = textwrap.dedent(
     import numpy as np
 
     from qdcnn.batch import Failure
-    from qdcnn.experiments.feature_cache import CachedFeatures, read_entry, write_entry
+    from qdcnn.direction.feature_cache import CachedFeatures, read_entry, write_entry
 
     path, seed, rounds = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
     n, groupings = 2000, ("image-split", "kmeans", "spectral")
@@ -255,7 +255,7 @@ def test_two_processes_writing_one_key_never_crash_or_corrupt(tmp_path: Path) ->
 def test_auto_lanes_estimate_the_camera_and_say_what_they_chose(tmp_path, monkeypatch) -> None:
     from qdcnn.config import LaneConfig, PipelineConfig
     from qdcnn.data.frames import load_frameset
-    from qdcnn.experiments.features import compute_features
+    from qdcnn.direction.features import compute_features
 
     monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
     frames = load_frameset("synthetic:dashcam:60", seed=2)
