@@ -12,6 +12,8 @@ import pytest
 
 from qdcnn.errors import MissingExtraError
 
+pytestmark = pytest.mark.base  # runs in the base-install job too
+
 BENCHMARKS = sorted((Path(__file__).parents[1] / "benchmarks").glob("*.py"))
 
 

@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+pytestmark = pytest.mark.base  # runs in the base-install job too
+
 PACKAGES = [
     "qdcnn.data",
     "qdcnn.vision",

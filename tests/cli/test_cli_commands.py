@@ -345,6 +345,7 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
         assert row["direction"] in ("left", "straight", "right")
 
 
+@pytest.mark.base
 def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

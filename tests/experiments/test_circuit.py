@@ -71,6 +71,7 @@ def test_uu_exact_and_noisy() -> None:
     assert noisy.header.endswith("noise depolarizing:0.3")
 
 
+@pytest.mark.base
 def test_vqc_matches_the_simulator_and_exports_qasm(tmp_path: Path) -> None:
     qasm = tmp_path / "vqc.qasm"
     spec = CircuitSpec("vqc", x="0.3,1.2", weights="0.1,0.2,0.3,0.4", qasm=qasm)
