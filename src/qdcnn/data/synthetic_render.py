@@ -779,6 +779,18 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, SHIFT)
 
 
+def _in_view(
+    view: _View, xc: FloatArray, zc: FloatArray, far: float, margin: float | FloatArray
+) -> NDArray[np.intp]:
+    """Indices of the objects at camera ``(xc, zc)`` between the near plane and ``far``
+    that may reach into the frame (``margin``: how far, in metres, an object reaches
+    sideways from its centre)."""
+    cam = view.cam
+    zs = np.maximum(zc, MIN_Z)
+    ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - margin < (cam.cx + 2) * zs / cam.fx)
+    return np.flatnonzero(ok)
+
+
 def _tree_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     """Trunk and canopy polygons of the trees in view nearer than ``far``."""
     t = take.scenery.trees
@@ -786,10 +798,8 @@ def _tree_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     if not (t and t["x"].size):
         return []
     xc, zc = view.to_camera(t["x"], t["z"])
-    zs = np.maximum(zc, MIN_Z)
     r = t["radius"]
-    ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - 1.7 * r < (cam.cx + 2) * zs / cam.fx)
-    i = np.flatnonzero(ok)
+    i = _in_view(view, xc, zc, far, 1.7 * r)
     if not i.size:
         return []
     x, z = xc[i], zc[i]
@@ -833,9 +843,7 @@ def _pole_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     if not (p and p["x"].size):
         return []
     xc, zc = view.to_camera(p["x"], p["z"])
-    zs = np.maximum(zc, MIN_Z)
-    ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - 3.0 < (cam.cx + 2) * zs / cam.fx)
-    i = np.flatnonzero(ok)
+    i = _in_view(view, xc, zc, far, 3.0)
     if not i.size:
         return []
     x, z, hgt = xc[i], zc[i], p["height"][i]

@@ -577,6 +577,20 @@ class _Sun:
         return np.asarray(np.round((1.0 - ratio) * 50) / 50)  # a few levels: fewer fills
 
 
+@dataclass
+class _Layout:
+    """What the scenery placers share: the random stream (drawn from in a fixed order),
+    the style, the stretch of route, the sun, and the shadows laid so far."""
+
+    rng: np.random.Generator
+    style: Style
+    route: Route
+    s_lo: float
+    s_hi: float
+    sun: _Sun
+    shadow_parts: _ShadowParts = field(default_factory=list)
+
+
 def make_scenery(
     rng: np.random.Generator,
     style: Style,
@@ -595,31 +609,24 @@ def make_scenery(
     sc = Scenery()
     base_ratio = rng.uniform(*style.shadow_ratio)
     sun = _Sun(shadow_direction, sun_elevation, sun_out, base_ratio, style.shadow_ratio)
-    shadow_parts: _ShadowParts = []
-    sc.trees, sc.tree_outlines = _place_trees(rng, style, route, s_lo, s_hi, sun, shadow_parts)
-    sc.poles = _place_poles(rng, style, route, s_lo, s_hi, sun, shadow_parts)
-    sc.buildings = _place_buildings(rng, style, route, s_lo, s_hi, sun, shadow_parts)
-    sc.shadows = PolySet.join(shadow_parts)
+    lay = _Layout(rng, style, route, s_lo, s_hi, sun)
+    sc.trees, sc.tree_outlines = _place_trees(lay)
+    sc.poles = _place_poles(lay)
+    sc.buildings = _place_buildings(lay)
+    sc.shadows = PolySet.join(lay.shadow_parts)
     # Ground decals: tar repairs on the road, dark bushes beside it, puddles on the road.
-    sc.tar = _road_decals(rng, route, s_lo, s_hi, style.tar_patches, (0.5, 2.0), (1.0, 2.5))
-    sc.puddles = _road_decals(rng, route, s_lo, s_hi, style.puddles, (0.6, 2.0), (1.2, 3.0))
-    sc.bushes = _bushes(rng, style, route, s_lo, s_hi)
+    sc.tar = _road_decals(lay, style.tar_patches, (0.5, 2.0), (1.0, 2.5))
+    sc.puddles = _road_decals(lay, style.puddles, (0.6, 2.0), (1.2, 3.0))
+    sc.bushes = _bushes(lay)
     return sc
 
 
-def _place_trees(
-    rng: np.random.Generator,
-    style: Style,
-    route: Route,
-    s_lo: float,
-    s_hi: float,
-    sun: _Sun,
-    shadow_parts: _ShadowParts,
-) -> tuple[dict[str, FloatArray], FloatArray]:
-    """Trees and their outlines; their shadows go to ``shadow_parts``.
+def _place_trees(lay: _Layout) -> tuple[dict[str, FloatArray], FloatArray]:
+    """Trees and their outlines; their shadows go to ``lay.shadow_parts``.
 
     Near trees cast shadows onto the road, far ones make the landscape.
     """
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
     half = route.width / 2.0
     near = _roadside(rng, route, s_lo, s_hi, style.near_trees, (1.2, 7.0), half + 1.0)
     far = _roadside(rng, route, s_lo, s_hi, style.far_trees, (7.0, 45.0), half + 1.0)
@@ -656,21 +663,14 @@ def _place_trees(
         )
         dark = sun.darkness(rng, n)
         trunk = strips(base, base + sun.sdir * (trunk_top * sun.cot)[:, None], trees["trunk_w"])
-        shadow_parts += [(canopy, dark), (trunk, dark)]
+        lay.shadow_parts += [(canopy, dark), (trunk, dark)]
     return trees, outlines
 
 
-def _place_poles(
-    rng: np.random.Generator,
-    style: Style,
-    route: Route,
-    s_lo: float,
-    s_hi: float,
-    sun: _Sun,
-    shadow_parts: _ShadowParts,
-) -> dict[str, FloatArray]:
+def _place_poles(lay: _Layout) -> dict[str, FloatArray]:
     """Poles (street lights / power poles), most with an arm reaching over the road; their
-    shadows go to ``shadow_parts``."""
+    shadows go to ``lay.shadow_parts``."""
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
     half = route.width / 2.0
     px, pz, (ps, pside) = _roadside(rng, route, s_lo, s_hi, style.poles, (0.6, 2.5), half + 0.4)
     _, _, h_road = route.pose(ps)
@@ -687,25 +687,18 @@ def _place_poles(
         base = np.stack([px, pz], -1)
         top = base + sun.sdir * (poles["height"] * sun.cot)[:, None]
         dark = sun.darkness(rng, m)
-        shadow_parts.append((strips(base, top, poles["width"]), dark))
+        lay.shadow_parts.append((strips(base, top, poles["width"]), dark))
         arm = poles["arm"] > 0
         a = poles["arm_dir"][arm]
         tip = top[arm] + poles["arm"][arm, None] * np.stack([np.sin(a), np.cos(a)], -1)
-        shadow_parts.append((strips(top[arm], tip, poles["width"][arm] * 0.8, 6), dark[arm]))
+        lay.shadow_parts.append((strips(top[arm], tip, poles["width"][arm] * 0.8, 6), dark[arm]))
     return poles
 
 
-def _place_buildings(
-    rng: np.random.Generator,
-    style: Style,
-    route: Route,
-    s_lo: float,
-    s_hi: float,
-    sun: _Sun,
-    shadow_parts: _ShadowParts,
-) -> list[tuple[FloatArray, float, RGB]]:
+def _place_buildings(lay: _Layout) -> list[tuple[FloatArray, float, RGB]]:
     """Buildings: boxes set back from the road (corners, height, colour); their shadows go
-    to ``shadow_parts``."""
+    to ``lay.shadow_parts``."""
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
     half = route.width / 2.0
     buildings: list[tuple[FloatArray, float, RGB]] = []
     for side in (-1.0, 1.0):
@@ -732,20 +725,15 @@ def _place_buildings(
             if sun.out:
                 moved = corners + sun.sdir * height_b * sun.cot
                 hull = _convex_hull(np.concatenate([corners, moved]).astype(np.float32))
-                shadow_parts.append((densify(hull, 0.5)[None], sun.darkness(rng, 1)))
+                lay.shadow_parts.append((densify(hull, 0.5)[None], sun.darkness(rng, 1)))
     return buildings
 
 
 def _road_decals(
-    rng: np.random.Generator,
-    route: Route,
-    s_lo: float,
-    s_hi: float,
-    per_100m: float,
-    size: tuple[float, float],
-    stretch: tuple[float, float],
+    lay: _Layout, per_100m: float, size: tuple[float, float], stretch: tuple[float, float]
 ) -> PolySet:
     """Rough blobs lying on the road (tar repairs, puddles)."""
+    rng, route, s_lo, s_hi = lay.rng, lay.route, lay.s_lo, lay.s_hi
     half = route.width / 2.0
     s = _positions(rng, s_lo, s_hi, per_100m)
     d = rng.uniform(-half + 0.8, half - 0.8, s.size)
@@ -762,10 +750,9 @@ def _road_decals(
     return PolySet.join([(polys, np.ones(s.size))])
 
 
-def _bushes(
-    rng: np.random.Generator, style: Style, route: Route, s_lo: float, s_hi: float
-) -> PolySet:
+def _bushes(lay: _Layout) -> PolySet:
     """Dark bushes beside the road."""
+    rng, style, route, s_lo, s_hi = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi
     half = route.width / 2.0
     bx, bz, _ = _roadside(rng, route, s_lo, s_hi, style.dark_bushes, (1.0, 9.0), half + 0.8)
     r = rng.uniform(0.8, 2.5, bx.size)
