@@ -349,13 +349,46 @@ def _soft(canvas: F32, sigma_rows: FloatArray, top: int) -> F32:
     return out
 
 
+@dataclass(frozen=True)
+class _GroundRows:
+    """Depth and texture samples of the ground rows ``top:`` of a frame."""
+
+    zr: FloatArray  # depth (metres) of each ground row
+    fine_road: F32
+    fine_terr: F32
+    mid_road: F32
+    macro: F32
+
+
 def render(
     take: Take, state: FrameState, width: int, height: int, rng: np.random.Generator, hood: bool
 ) -> Frame:
     """Render the frame seen from ``state`` in ``take`` at ``width`` x ``height`` pixels."""
+    view, yaw, zr = _frame_view(take, state, width, height)
+    rows = _ground_rows(take, view, zr)
+    ground = _terrain(take, rows)  # planar (3, h, w) until the objects are drawn
+    centre = _Centreline.ahead(view, take, _road_ahead(take, state))
+    road_cov = _paint_road(ground, take, view, centre, rows)
+    s_hi = min(state.s + SCENERY_DISTANCE, take.route.s_end - 1.0)
+    _paint_edges(ground, take, state, view, s_hi, rows.fine_terr)
+    _paint_decals(ground, take, view, centre, rows)
+    lines = _paint_markings(ground, take, state, view, centre, s_hi, rows.fine_road)
+    # wet reflections first: shadows then darken them too (a wet road shows weak shadows)
+    _paint_wet(ground, take, view, road_cov, rows)
+    sh_alpha = _paint_shadows(ground, take, view, rows.zr)
+    img = _with_sky(ground, take, view, rows.zr)
+    labels = _draw_casters(img, take, state, view)
+    image, hood_cov = _camera_effects(img, take, rng, hood)
+    return _ground_truth(image, take, view, yaw, labels, hood_cov, sh_alpha, road_cov, lines)
+
+
+def _frame_view(
+    take: Take, state: FrameState, width: int, height: int
+) -> tuple[_View, float, FloatArray]:
+    """The camera view of ``state``, the camera's yaw from the road heading and the depth
+    of each ground row."""
     style = take.style
     route = take.route
-    sc = take.scenery
     cam = Camera(
         width,
         height,
@@ -370,15 +403,18 @@ def render(
     top = min(max(math.ceil(v_top), 0), height)
     yaw = state.heading + take.yaw
     view = _View(cam, float(cx_w[0]), float(cz_w[0]), float(h_road[0]) + yaw, z_vis, top)
-    shape = (height, width)
-
-    # --- per-row depth, world coordinates and textures of the ground
     zr = np.interp(np.arange(top, height, dtype=np.float64), rows_tab, z_tab)
+    return view, yaw, zr
+
+
+def _ground_rows(take: Take, view: _View, zr: FloatArray) -> _GroundRows:
+    """World coordinates and textures of the ground rows at depths ``zr``."""
+    cam = view.cam
     ox, oz = take.texture_offset
     c, s = math.cos(view.heading), math.sin(view.heading)
-    k = (np.arange(width, dtype=np.float32) - np.float32(cam.cx))[None, :] * (zr / cam.fx).astype(
-        np.float32
-    )[:, None]
+    k = (np.arange(cam.width, dtype=np.float32) - np.float32(cam.cx))[None, :] * (
+        zr / cam.fx
+    ).astype(np.float32)[:, None]
     zcol = zr.astype(np.float32)[:, None]
     footprint = np.sqrt(zr / cam.fx * zr**2 / (cam.fy * CAMERA_HEIGHT))
 
@@ -388,27 +424,52 @@ def render(
         v = (zcol * np.float32(c) - k * np.float32(s) + np.float32(view.z0 + oz)) * q
         return _sample(_ground_textures(kind), u, v, np.log2(np.maximum(footprint / scale, 1.0)))
 
-    fine = tex("fine", 0.03)
-    coarse = tex("coarse", 0.6)
-    fine_road, fine_terr = fine
-    mid_road, macro = coarse
+    fine_road, fine_terr = tex("fine", 0.03)
+    mid_road, macro = tex("coarse", 0.6)
+    return _GroundRows(zr, fine_road, fine_terr, mid_road, macro)
+
+
+def _terrain(take: Take, rows: _GroundRows) -> F32:
+    """The bare terrain colour of the ground rows, planar ``(3, h - top, w)``."""
+    style = take.style
     tint = take.tint.astype(np.float32)
     ta, tb = (np.asarray(col, np.float32) * tint for col in style.terrain)
-    t_mix = np.clip(0.5 + 0.6 * macro + 0.25 * mid_road, 0.0, 1.0)
-    ground = _rgb(ta) + _rgb(tb - ta) * t_mix  # planar (3, h, w) until the objects are drawn
-    ground *= 1.0 + style.terrain_grain * fine_terr
+    t_mix = np.clip(0.5 + 0.6 * rows.macro + 0.25 * rows.mid_road, 0.0, 1.0)
+    ground = _rgb(ta) + _rgb(tb - ta) * t_mix
+    ground *= 1.0 + style.terrain_grain * rows.fine_terr
+    return ground
 
-    # --- road, edge strips, markings (road-aligned geometry)
-    half = route.width / 2.0
+
+def _road_ahead(take: Take, state: FrameState) -> FloatArray:
+    """Arc lengths at which the road centre ahead of the car is sampled."""
     s_near = state.s + np.geomspace(1.0, VIEW_DISTANCE, 480)
-    s_near = s_near[s_near <= route.s_end]
-    centre = _Centreline.ahead(view, take, s_near)
-    road_cov = _coverage(shape, [_strip(view, centre, -half, half)])
-    asphalt = np.asarray(style.asphalt, np.float32) * tint
-    road_alb = _rgb(asphalt) * (1.0 + style.asphalt_grain * fine_road + 0.07 * mid_road)
-    _blend(ground, road_alb, road_cov[top:])
+    return s_near[s_near <= take.route.s_end]
 
-    s_hi = min(state.s + SCENERY_DISTANCE, route.s_end - 1.0)
+
+def _paint_road(
+    ground: F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
+) -> F32:
+    """Paint the asphalt onto ``ground``; return the road's coverage of the whole frame."""
+    style = take.style
+    half = take.route.width / 2.0
+    road_cov = _coverage(_frame_shape(view), [_strip(view, centre, -half, half)])
+    asphalt = np.asarray(style.asphalt, np.float32) * take.tint.astype(np.float32)
+    grain = 1.0 + style.asphalt_grain * rows.fine_road + 0.07 * rows.mid_road
+    _blend(ground, _rgb(asphalt) * grain, road_cov[view.top :])
+    return road_cov
+
+
+def _frame_shape(view: _View) -> tuple[int, int]:
+    return (view.cam.height, view.cam.width)
+
+
+def _paint_edges(
+    ground: F32, take: Take, state: FrameState, view: _View, s_hi: float, fine_terr: F32
+) -> None:
+    """Paint the road's edge strips (curbs, gravel or sidewalks) where the take has them."""
+    style = take.style
+    route = take.route
+    half = route.width / 2.0
     edge_polys: dict[str, list[FloatArray]] = {"a": [], "b": [], "c": []}
     seg = np.arange(math.floor(state.s), s_hi, 1.0)
     idx = np.clip(((seg - route.s0) / ROUTE_STEP).astype(int), 0, route.curvature.size - 1)
@@ -431,26 +492,46 @@ def render(
     grit = 1.0 + 0.12 * fine_terr
     for key, colour in EDGE_COLOURS[style.edge_kind].items():
         if edge_polys[key]:
-            cov = _coverage(shape, np.concatenate(edge_polys[key]))[top:]
+            cov = _coverage(_frame_shape(view), np.concatenate(edge_polys[key]))[view.top :]
             _blend(ground, _rgb(colour) * grit, cov)
 
-    if style.name == "track2":  # darker tyre tracks along the road
+
+def _paint_decals(
+    ground: F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
+) -> None:
+    """Paint tyre tracks (track2), bushes and tar patches onto ``ground``."""
+    sc = take.scenery
+    shape, top = _frame_shape(view), view.top
+    if take.style.name == "track2":  # darker tyre tracks along the road
         streak = _coverage(
             shape, [_strip(view, centre, d - 0.3, d + 0.3) for d in (-0.85, 0.85)], True
         )
-        streak = cv2.GaussianBlur(streak, (0, 0), max(0.6, width / 320))[top:]
-        ground *= 1.0 - 0.16 * streak * np.clip(0.8 + 0.4 * mid_road, 0.4, 1.2)
+        streak = cv2.GaussianBlur(streak, (0, 0), max(0.6, view.cam.width / 320))[top:]
+        ground *= 1.0 - 0.16 * streak * np.clip(0.8 + 0.4 * rows.mid_road, 0.4, 1.2)
     if len(sc.bushes):
         bush = _coverage(shape, [p for _, p in _ground_polys(view, sc.bushes)], True)[top:]
-        _blend(ground, _rgb((0.10, 0.14, 0.07)) * (1.0 + 0.35 * fine_terr), bush)
+        _blend(ground, _rgb((0.10, 0.14, 0.07)) * (1.0 + 0.35 * rows.fine_terr), bush)
     if len(sc.tar):
         tar = _coverage(shape, [p for _, p in _ground_polys(view, sc.tar)], True)[top:]
         _blend(ground, ground * _rgb((0.48, 0.48, 0.50)), tar * 0.9)
 
+
+def _paint_markings(
+    ground: F32,
+    take: Take,
+    state: FrameState,
+    view: _View,
+    centre: _Centreline,
+    s_hi: float,
+    fine_road: F32,
+) -> list[FloatArray]:
+    """Paint the lane markings; return the image points of the car lane's two borders."""
+    shape, top = _frame_shape(view), view.top
+    half = take.route.width / 2.0
     line_d = half - take.line_inset - take.line_width / 2
     lw2 = take.line_width / 2
     wear = np.clip(0.85 + 0.15 * fine_road, 0.6, 1.0)
-    if style.layout == "two-lane":
+    if take.style.layout == "two-lane":
         # double yellow centre line, white edge lines at the lanes' outer borders; the car's
         # lane is the right one: its borders are the centre line and the right edge line
         lines = [_curve(view, centre, 0.0), _curve(view, centre, take.lane_width)]
@@ -461,64 +542,91 @@ def render(
         ]
         _blend(ground, _rgb(WHITE_LINE), _coverage(shape, white, True)[top:] * wear)
         _blend(ground, _rgb(take.line_colour), _coverage(shape, yellow, True)[top:] * wear)
-    else:
-        lines = [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
-        marks: list[FloatArray] = [
-            _strip(view, centre, d - lw2, d + lw2) for d in (-line_d, line_d)
-        ]
-        if take.centre_dash:
-            dash = np.arange(math.floor(state.s / 9.0) * 9.0, s_hi, 9.0)
-            marks += list(_quads(view, take, dash, 3.0, -lw2, lw2))
-        mark = _coverage(shape, marks, True)[top:] * wear
-        _blend(ground, _rgb(take.line_colour), mark)
+        return lines
+    marks: list[FloatArray] = [_strip(view, centre, d - lw2, d + lw2) for d in (-line_d, line_d)]
+    if take.centre_dash:
+        dash = np.arange(math.floor(state.s / 9.0) * 9.0, s_hi, 9.0)
+        marks += list(_quads(view, take, dash, 3.0, -lw2, lw2))
+    mark = _coverage(shape, marks, True)[top:] * wear
+    _blend(ground, _rgb(take.line_colour), mark)
+    return [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
 
-    # --- wet reflections (shadows then darken them too: a wet road shows weak shadows)
+
+def _paint_wet(ground: F32, take: Take, view: _View, road_cov: F32, rows: _GroundRows) -> None:
+    """Paint the sky's reflection on a wet road and its puddles (rain preset)."""
+    style = take.style
+    if style.wet <= 0:
+        return
+    sc, top = take.scenery, view.top
+    refl = style.wet * road_cov[top:] * np.clip(0.85 + 0.3 * rows.mid_road, 0.6, 1.1)
+    if len(sc.puddles):
+        puddles = [p for _, p in _ground_polys(view, sc.puddles)]
+        puddle = _coverage(_frame_shape(view), puddles, True)[top:]
+        refl = np.maximum(refl, 0.42 * puddle * np.clip(0.9 + 0.5 * rows.fine_road, 0.6, 1.1))
     horizon = np.asarray(style.sky_horizon, np.float32)
-    if style.wet > 0:
-        refl = style.wet * road_cov[top:] * np.clip(0.85 + 0.3 * mid_road, 0.6, 1.1)
-        if len(sc.puddles):
-            puddle = _coverage(shape, [p for _, p in _ground_polys(view, sc.puddles)], True)[top:]
-            refl = np.maximum(refl, 0.42 * puddle * np.clip(0.9 + 0.5 * fine_road, 0.6, 1.1))
-        refl_col = _rgb(horizon) * np.clip(0.85 + 0.6 * mid_road, 0.6, 1.1)
-        _blend(ground, refl_col, refl)
-    # --- cast shadows: where shadows overlap the darkest wins; edges blurred (penumbra)
+    refl_col = _rgb(horizon) * np.clip(0.85 + 0.6 * rows.mid_road, 0.6, 1.1)
+    _blend(ground, refl_col, refl)
+
+
+def _paint_shadows(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
+    """Darken ``ground`` under cast shadows; return their blurred coverage of the frame.
+
+    Where shadows overlap the darkest wins; edges are blurred (penumbra).
+    """
+    sc, style, top = take.scenery, take.style, view.top
+    shape = _frame_shape(view)
     sh_alpha = np.zeros(shape, np.float32)
-    if take.sun_out and len(sc.shadows):
-        projected = sorted(_ground_polys(view, sc.shadows), key=lambda ip: sc.shadows.values[ip[0]])
-        if projected:
-            dark = np.zeros(shape, np.uint8)  # darkness of the covering shadow, 0 = lit
-            _fill_each(
-                dark,
-                [pts for _, pts in projected],
-                [max(1, round(255 * sc.shadows.values[i])) for i, _ in projected],
-                aa=False,
-            )
-            # penumbra: a fixed width on the ground, so wider in pixels near the camera
-            sigma_rows = style.penumbra * cam.fx / zr
-            sh_alpha = _soft((dark > 0).astype(np.float32), sigma_rows, top)
-            sh_dark = _soft(dark.astype(np.float32) * np.float32(1 / 255), sigma_rows, top)[top:]
-            ground *= 1.0 - sh_dark * _rgb(style.shadow_tint)
+    if not (take.sun_out and len(sc.shadows)):
+        return sh_alpha
+    projected = sorted(_ground_polys(view, sc.shadows), key=lambda ip: sc.shadows.values[ip[0]])
+    if not projected:
+        return sh_alpha
+    dark = np.zeros(shape, np.uint8)  # darkness of the covering shadow, 0 = lit
+    _fill_each(
+        dark,
+        [pts for _, pts in projected],
+        [max(1, round(255 * sc.shadows.values[i])) for i, _ in projected],
+        aa=False,
+    )
+    # penumbra: a fixed width on the ground, so wider in pixels near the camera
+    sigma_rows = style.penumbra * view.cam.fx / zr
+    sh_alpha = _soft((dark > 0).astype(np.float32), sigma_rows, top)
+    sh_dark = _soft(dark.astype(np.float32) * np.float32(1 / 255), sigma_rows, top)[top:]
+    ground *= 1.0 - sh_dark * _rgb(style.shadow_tint)
+    return sh_alpha
 
-    # --- haze, sky
-    haze = (1.0 - np.exp(-zr / style.haze_distance)).astype(np.float32)
+
+def _with_sky(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
+    """Haze the ground, add the sky above it; the frame as ``(h, w, 3)`` for cv2 drawing."""
+    cam, top = view.cam, view.top
+    horizon = np.asarray(take.style.sky_horizon, np.float32)
+    haze = (1.0 - np.exp(-zr / take.style.haze_distance)).astype(np.float32)
     ground += (_rgb(horizon) - ground) * haze[:, None]
-    planes = np.empty((3, height, width), np.float32)
-    planes[:, :top] = _sky(take, cam, view, width, height, top)
+    planes = np.empty((3, cam.height, cam.width), np.float32)
+    planes[:, :top] = _sky(take, cam, view, cam.width, cam.height, top)
     planes[:, top:] = ground
-    img = np.asarray(cv2.merge(list(planes)), np.float32)  # (h, w, 3) for cv2 drawing
+    return np.asarray(cv2.merge(list(planes)), np.float32)
 
-    # --- roadside objects (casters), far to near
-    labels = np.zeros(shape, np.uint8)
+
+def _draw_casters(img: F32, take: Take, state: FrameState, view: _View) -> U8:
+    """Draw the roadside objects and cars, far to near; return their label image."""
+    width, height = view.cam.width, view.cam.height
+    labels = np.zeros((height, width), np.uint8)
     _draw_objects(img, labels, take, view)
     if take.cars:
-        _draw_cars(img, labels, take, view, state.s / (style.speed_mph * 0.44704))
+        _draw_cars(img, labels, take, view, state.s / (take.style.speed_mph * 0.44704))
     foliage = labels == FOLIAGE
     if foliage.any():
         n = _screen_noise(16, 1.6, width, height, 1.0)
         img[foliage] *= (1.0 + 0.22 * np.clip(n[foliage], -2.0, 2.0))[:, None]
+    return labels
 
-    # --- car hood, weather and sensor
-    hood_cov = np.zeros(shape, np.float32)
+
+def _camera_effects(img: F32, take: Take, rng: np.random.Generator, hood: bool) -> tuple[U8, F32]:
+    """Car hood, weather and sensor; the 8-bit frame and the hood's coverage."""
+    height, width = img.shape[:2]
+    style = take.style
+    hood_cov = np.zeros((height, width), np.float32)
     if hood:
         hood_cov, hood_keep, hood_add = _hood(width, height)
         img *= hood_keep
@@ -531,16 +639,30 @@ def render(
     grain = _sensor_grain(width, height)
     oy, ox_ = int(rng.integers(0, height)), int(rng.integers(0, width))
     img += np.float32(0.01 if style.rain else 0.006) * grain[oy : oy + height, ox_ : ox_ + width]
-    image = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+    return np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8), hood_cov
 
-    # --- ground truth
-    visible = np.zeros(shape, bool)
+
+def _ground_truth(
+    image: U8,
+    take: Take,
+    view: _View,
+    yaw: float,
+    labels: U8,
+    hood_cov: F32,
+    sh_alpha: F32,
+    road_cov: F32,
+    lines: list[FloatArray],
+) -> Frame:
+    """The frame with its shadow and road masks and visible lane lines."""
+    cam, top = view.cam, view.top
+    width, height = cam.width, cam.height
+    visible = np.zeros((height, width), bool)
     visible[top:] = True
     visible &= (labels == 0) & (hood_cov < 0.5)
     shadow_mask = (sh_alpha >= 0.5) & visible
     road_mask = (road_cov >= 0.5) & visible
     hidden = hood_cov
-    if style.layout == "two-lane":  # markings behind cars and trees are not visible
+    if take.style.layout == "two-lane":  # markings behind cars and trees are not visible
         hidden = np.maximum(hood_cov, (labels > 0).astype(np.float32))
     lane_lines = [_visible(p, width, height, top, hidden) for p in lines]
     vp = (cam.cx + cam.fx * math.tan(-yaw), cam.horizon)
@@ -630,104 +752,21 @@ def _hazed(colours: FloatArray, z: FloatArray, take: Take) -> FloatArray:
     return np.asarray(colours + (np.asarray(take.style.sky_horizon) - colours) * h)
 
 
+# (depth, order, kind, polygons or a segment (fixed point), colour, label, thickness)
+_Job = tuple[float, int, str, list[NDArray[np.int32]], tuple[float, ...], int, int]
+
+
 def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
     """Draw trees, poles and buildings standing on the ground, farthest first.
 
     Shapes are prepared for all visible objects at once; the loop only fills polygons.
     """
-    sc = take.scenery
     cam = view.cam
     far = min(SCENERY_DISTANCE, view.z_vis + 1.0)
     limit = 8.0 * max(cam.width, cam.height)
-    # (depth, order, kind, polygons or a segment (fixed point), colour, label, thickness)
-    jobs: list[tuple[float, int, str, list[NDArray[np.int32]], tuple[float, ...], int, int]] = []
-
-    t = sc.trees
-    if t and t["x"].size:
-        xc, zc = view.to_camera(t["x"], t["z"])
-        zs = np.maximum(zc, MIN_Z)
-        r = t["radius"]
-        ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - 1.7 * r < (cam.cx + 2) * zs / cam.fx)
-        i = np.flatnonzero(ok)
-        if i.size:
-            x, z = xc[i], zc[i]
-            w2 = t["trunk_w"][i] / 2
-            ub_l, ub_r = cam.column(x - w2, z), cam.column(x + w2, z)
-            vb, vt = cam.row(z), cam.row(z, t["trunk_top"][i])
-            trunk = np.stack(
-                [
-                    np.stack([ub_l, vb], 1),
-                    np.stack([ub_r, vb], 1),
-                    np.stack([ub_r, vt], 1),
-                    np.stack([ub_l, vt], 1),
-                ],
-                1,
-            )
-            outline = sc.tree_outlines[i]
-            uc, vc = cam.column(x, z), cam.row(z, t["crown"][i])
-            sx, sy = cam.fx * r[i] / z, cam.fy * r[i] / z
-            canopy = np.stack(
-                [
-                    uc[:, None] + sx[:, None] * outline[..., 0],
-                    vc[:, None] - sy[:, None] * outline[..., 1],
-                ],
-                -1,
-            )
-            trunk_col = _hazed(np.tile([0.30, 0.22, 0.14], (i.size, 1)), z, take)
-            palette = np.asarray(take.style.foliage)[t["colour"][i].astype(int)] * take.tint
-            leaf_col = _hazed(palette, z, take)
-            tf, cf = _fixed(trunk, limit), _fixed(canopy, limit)
-            for j in range(i.size):
-                jobs.append((float(z[j]), 0, "poly", [tf[j]], tuple(trunk_col[j]), TRUNK, 0))
-                jobs.append((float(z[j]), 1, "poly", [cf[j]], tuple(leaf_col[j]), FOLIAGE, 0))
-
-    p = sc.poles
-    if p and p["x"].size:
-        xc, zc = view.to_camera(p["x"], p["z"])
-        zs = np.maximum(zc, MIN_Z)
-        ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - 3.0 < (cam.cx + 2) * zs / cam.fx)
-        i = np.flatnonzero(ok)
-        if i.size:
-            x, z, hgt = xc[i], zc[i], p["height"][i]
-            base = view.project(x, z)
-            top = view.project(x, z, hgt)
-            a = p["arm_dir"][i]
-            tx, tz = view.to_camera(
-                p["x"][i] + p["arm"][i] * np.sin(a), p["z"][i] + p["arm"][i] * np.cos(a)
-            )
-            tip = view.project(tx, np.maximum(tz, MIN_Z), hgt)
-            widths = np.maximum(1, np.round(cam.fx * p["width"][i] / z)).astype(int)
-            col = _hazed(np.tile([0.38, 0.38, 0.40], (i.size, 1)), z, take)
-            pole_seg = _fixed(np.stack([base, top], 1), limit)
-            arm_seg = _fixed(np.stack([top, tip], 1), limit)
-            for j in range(i.size):
-                jobs.append(
-                    (float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), POLE, int(widths[j]))
-                )
-                if p["arm"][i[j]] > 0 and tz[j] > MIN_Z:
-                    jobs.append(
-                        (
-                            float(z[j]),
-                            1,
-                            "line",
-                            [arm_seg[j]],
-                            tuple(col[j]),
-                            POLE,
-                            max(1, int(widths[j]) - 1),
-                        )
-                    )
-
-    for b, (corners, height_b, colour) in enumerate(sc.buildings):
-        xc, zc = view.to_camera(corners[:, 0], corners[:, 1])
-        if zc.max() > MIN_Z and zc.min() < min(SCENERY_DISTANCE * 1.5, view.z_vis + 5.0):
-            depth = float(np.mean(zc))
-            faces = _building_faces(take, view, corners, height_b, colour)
-            for order, (face, face_col) in enumerate(faces):
-                fixed = np.split(
-                    _fixed(np.concatenate(face), limit), np.cumsum([len(f) for f in face])[:-1]
-                )
-                jobs.append((depth + 1e-6 * b, order, "poly", fixed, face_col, WALL, 0))
-
+    jobs = _tree_jobs(take, view, far, limit)
+    jobs += _pole_jobs(take, view, far, limit)
+    jobs += _building_jobs(take, view, limit)
     jobs.sort(key=lambda j: (-j[0], j[1]))
     for _, _, kind, shape_px, paint, label, thick in jobs:
         if kind == "poly":
@@ -738,6 +777,110 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
             a_, b_ = (int(seg[0, 0]), int(seg[0, 1])), (int(seg[1, 0]), int(seg[1, 1]))
             cv2.line(img, a_, b_, paint, thick, cv2.LINE_8, SHIFT)
             cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, SHIFT)
+
+
+def _in_view(
+    view: _View, xc: FloatArray, zc: FloatArray, far: float, margin: float | FloatArray
+) -> NDArray[np.intp]:
+    """Indices of the objects at camera ``(xc, zc)`` between the near plane and ``far``
+    that may reach into the frame (``margin``: how far, in metres, an object reaches
+    sideways from its centre)."""
+    cam = view.cam
+    zs = np.maximum(zc, MIN_Z)
+    ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - margin < (cam.cx + 2) * zs / cam.fx)
+    return np.flatnonzero(ok)
+
+
+def _tree_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
+    """Trunk and canopy polygons of the trees in view nearer than ``far``."""
+    t = take.scenery.trees
+    cam = view.cam
+    if not (t and t["x"].size):
+        return []
+    xc, zc = view.to_camera(t["x"], t["z"])
+    r = t["radius"]
+    i = _in_view(view, xc, zc, far, 1.7 * r)
+    if not i.size:
+        return []
+    x, z = xc[i], zc[i]
+    w2 = t["trunk_w"][i] / 2
+    ub_l, ub_r = cam.column(x - w2, z), cam.column(x + w2, z)
+    vb, vt = cam.row(z), cam.row(z, t["trunk_top"][i])
+    trunk = np.stack(
+        [
+            np.stack([ub_l, vb], 1),
+            np.stack([ub_r, vb], 1),
+            np.stack([ub_r, vt], 1),
+            np.stack([ub_l, vt], 1),
+        ],
+        1,
+    )
+    outline = take.scenery.tree_outlines[i]
+    uc, vc = cam.column(x, z), cam.row(z, t["crown"][i])
+    sx, sy = cam.fx * r[i] / z, cam.fy * r[i] / z
+    canopy = np.stack(
+        [
+            uc[:, None] + sx[:, None] * outline[..., 0],
+            vc[:, None] - sy[:, None] * outline[..., 1],
+        ],
+        -1,
+    )
+    trunk_col = _hazed(np.tile([0.30, 0.22, 0.14], (i.size, 1)), z, take)
+    palette = np.asarray(take.style.foliage)[t["colour"][i].astype(int)] * take.tint
+    leaf_col = _hazed(palette, z, take)
+    tf, cf = _fixed(trunk, limit), _fixed(canopy, limit)
+    jobs: list[_Job] = []
+    for j in range(i.size):
+        jobs.append((float(z[j]), 0, "poly", [tf[j]], tuple(trunk_col[j]), TRUNK, 0))
+        jobs.append((float(z[j]), 1, "poly", [cf[j]], tuple(leaf_col[j]), FOLIAGE, 0))
+    return jobs
+
+
+def _pole_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
+    """Pole and arm segments of the poles in view nearer than ``far``."""
+    p = take.scenery.poles
+    cam = view.cam
+    if not (p and p["x"].size):
+        return []
+    xc, zc = view.to_camera(p["x"], p["z"])
+    i = _in_view(view, xc, zc, far, 3.0)
+    if not i.size:
+        return []
+    x, z, hgt = xc[i], zc[i], p["height"][i]
+    base = view.project(x, z)
+    top = view.project(x, z, hgt)
+    a = p["arm_dir"][i]
+    tx, tz = view.to_camera(
+        p["x"][i] + p["arm"][i] * np.sin(a), p["z"][i] + p["arm"][i] * np.cos(a)
+    )
+    tip = view.project(tx, np.maximum(tz, MIN_Z), hgt)
+    widths = np.maximum(1, np.round(cam.fx * p["width"][i] / z)).astype(int)
+    col = _hazed(np.tile([0.38, 0.38, 0.40], (i.size, 1)), z, take)
+    pole_seg = _fixed(np.stack([base, top], 1), limit)
+    arm_seg = _fixed(np.stack([top, tip], 1), limit)
+    jobs: list[_Job] = []
+    for j in range(i.size):
+        jobs.append((float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), POLE, int(widths[j])))
+        if p["arm"][i[j]] > 0 and tz[j] > MIN_Z:
+            arm_width = max(1, int(widths[j]) - 1)
+            jobs.append((float(z[j]), 1, "line", [arm_seg[j]], tuple(col[j]), POLE, arm_width))
+    return jobs
+
+
+def _building_jobs(take: Take, view: _View, limit: float) -> list[_Job]:
+    """Face polygons of the buildings in view, in drawing order per building."""
+    jobs: list[_Job] = []
+    for b, (corners, height_b, colour) in enumerate(take.scenery.buildings):
+        _, zc = view.to_camera(corners[:, 0], corners[:, 1])
+        if zc.max() > MIN_Z and zc.min() < min(SCENERY_DISTANCE * 1.5, view.z_vis + 5.0):
+            depth = float(np.mean(zc))
+            faces = _building_faces(take, view, corners, height_b, colour)
+            for order, (face, face_col) in enumerate(faces):
+                fixed = np.split(
+                    _fixed(np.concatenate(face), limit), np.cumsum([len(f) for f in face])[:-1]
+                )
+                jobs.append((depth + 1e-6 * b, order, "poly", fixed, face_col, WALL, 0))
+    return jobs
 
 
 def _draw_cars(img: F32, labels: U8, take: Take, view: _View, t: float) -> None:

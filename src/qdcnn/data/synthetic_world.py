@@ -549,6 +549,48 @@ def _roadside(
     return x[keep], z[keep], np.stack([s[keep], side[keep]])
 
 
+_ShadowParts = list[tuple[FloatArray, FloatArray]]  # ground polygons and their darkness
+
+
+@dataclass(frozen=True)
+class _Sun:
+    """The sun of a take: shadow geometry and the per-take base of the shadows' darkness."""
+
+    direction: float  # shadow direction on the ground (radians)
+    elevation: float
+    out: bool
+    base_ratio: float  # shadowed/lit ratio of the take
+    ratio_range: tuple[float, float]
+
+    @property
+    def cot(self) -> float:
+        return float(1.0 / np.tan(self.elevation))
+
+    @property
+    def sdir(self) -> FloatArray:
+        return np.array([np.sin(self.direction), np.cos(self.direction)])
+
+    def darkness(self, rng: np.random.Generator, n: int) -> FloatArray:
+        """Darkness (1 - shadowed/lit ratio) of ``n`` casters' shadows, around the take's."""
+        lo_r, hi_r = self.ratio_range
+        ratio = np.clip(self.base_ratio + rng.normal(0, 0.04, n), lo_r - 0.05, hi_r + 0.05)
+        return np.asarray(np.round((1.0 - ratio) * 50) / 50)  # a few levels: fewer fills
+
+
+@dataclass
+class _Layout:
+    """What the scenery placers share: the random stream (drawn from in a fixed order),
+    the style, the stretch of route, the sun, and the shadows laid so far."""
+
+    rng: np.random.Generator
+    style: Style
+    route: Route
+    s_lo: float
+    s_hi: float
+    sun: _Sun
+    shadow_parts: _ShadowParts = field(default_factory=list)
+
+
 def make_scenery(
     rng: np.random.Generator,
     style: Style,
@@ -565,19 +607,27 @@ def make_scenery(
     darkness (1 - shadowed/lit ratio) varies a little per caster around a per-take value.
     """
     sc = Scenery()
-    half = route.width / 2.0
-    cot = 1.0 / np.tan(sun_elevation)
-    sdir = np.array([np.sin(shadow_direction), np.cos(shadow_direction)])
     base_ratio = rng.uniform(*style.shadow_ratio)
-    lo_r, hi_r = style.shadow_ratio
+    sun = _Sun(shadow_direction, sun_elevation, sun_out, base_ratio, style.shadow_ratio)
+    lay = _Layout(rng, style, route, s_lo, s_hi, sun)
+    sc.trees, sc.tree_outlines = _place_trees(lay)
+    sc.poles = _place_poles(lay)
+    sc.buildings = _place_buildings(lay)
+    sc.shadows = PolySet.join(lay.shadow_parts)
+    # Ground decals: tar repairs on the road, dark bushes beside it, puddles on the road.
+    sc.tar = _road_decals(lay, style.tar_patches, (0.5, 2.0), (1.0, 2.5))
+    sc.puddles = _road_decals(lay, style.puddles, (0.6, 2.0), (1.2, 3.0))
+    sc.bushes = _bushes(lay)
+    return sc
 
-    def darkness(n: int) -> FloatArray:
-        ratio = np.clip(base_ratio + rng.normal(0, 0.04, n), lo_r - 0.05, hi_r + 0.05)
-        return np.asarray(np.round((1.0 - ratio) * 50) / 50)  # a few levels: fewer fills
 
-    shadow_parts: list[tuple[FloatArray, FloatArray]] = []
+def _place_trees(lay: _Layout) -> tuple[dict[str, FloatArray], FloatArray]:
+    """Trees and their outlines; their shadows go to ``lay.shadow_parts``.
 
-    # Trees: near ones cast shadows onto the road, far ones make the landscape.
+    Near trees cast shadows onto the road, far ones make the landscape.
+    """
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
+    half = route.width / 2.0
     near = _roadside(rng, route, s_lo, s_hi, style.near_trees, (1.2, 7.0), half + 1.0)
     far = _roadside(rng, route, s_lo, s_hi, style.far_trees, (7.0, 45.0), half + 1.0)
     x = np.concatenate([near[0], far[0]])
@@ -588,7 +638,7 @@ def make_scenery(
     radius = height * (rng.uniform(0.18, 0.26, n) if pine else rng.uniform(0.28, 0.42, n))
     crown = height - radius * (1.6 if pine else 1.0)  # canopy centre height
     trunk_top = crown - radius * (1.2 if pine else 0.7)
-    sc.trees = {
+    trees = {
         "x": x,
         "z": z,
         "height": height,
@@ -598,28 +648,34 @@ def make_scenery(
         "trunk_w": rng.uniform(0.25, 0.45, n),
         "colour": rng.integers(0, len(style.foliage), n).astype(np.float64),
     }
-    sc.tree_outlines = _pine_outlines(rng, n) if pine else blobs(rng, n, 56, 0.13)
+    outlines = _pine_outlines(rng, n) if pine else blobs(rng, n, 56, 0.13)
     if not pine:
-        sc.tree_outlines[..., 1] *= 1.1
-    if sun_out and n:
+        outlines[..., 1] *= 1.1
+    if sun.out and n:
         base = np.stack([x, z], -1)
-        along = radius / np.sin(sun_elevation) * (1.3 if pine else 1.0)
+        along = radius / np.sin(sun.elevation) * (1.3 if pine else 1.0)
         canopy = shapes(
-            base + sdir * (crown * cot)[:, None],
+            base + sun.sdir * (crown * sun.cot)[:, None],
             blobs(rng, n, 64, 0.10 if pine else 0.18),
             along,
             radius * (0.8 if pine else 1.0),
-            shadow_direction,
+            sun.direction,
         )
-        dark = darkness(n)
-        trunk = strips(base, base + sdir * (trunk_top * cot)[:, None], sc.trees["trunk_w"])
-        shadow_parts += [(canopy, dark), (trunk, dark)]
+        dark = sun.darkness(rng, n)
+        trunk = strips(base, base + sun.sdir * (trunk_top * sun.cot)[:, None], trees["trunk_w"])
+        lay.shadow_parts += [(canopy, dark), (trunk, dark)]
+    return trees, outlines
 
-    # Poles (street lights / power poles), most with an arm reaching over the road.
+
+def _place_poles(lay: _Layout) -> dict[str, FloatArray]:
+    """Poles (street lights / power poles), most with an arm reaching over the road; their
+    shadows go to ``lay.shadow_parts``."""
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
+    half = route.width / 2.0
     px, pz, (ps, pside) = _roadside(rng, route, s_lo, s_hi, style.poles, (0.6, 2.5), half + 0.4)
     _, _, h_road = route.pose(ps)
     m = px.size
-    sc.poles = {
+    poles = {
         "x": px,
         "z": pz,
         "height": rng.uniform(6.0, 9.5, m),
@@ -627,17 +683,24 @@ def make_scenery(
         "arm": rng.uniform(1.2, 2.8, m) * (rng.random(m) < 0.7),
         "arm_dir": h_road + np.where(pside < 0, np.pi / 2, -np.pi / 2),
     }
-    if sun_out and m:
+    if sun.out and m:
         base = np.stack([px, pz], -1)
-        top = base + sdir * (sc.poles["height"] * cot)[:, None]
-        dark = darkness(m)
-        shadow_parts.append((strips(base, top, sc.poles["width"]), dark))
-        arm = sc.poles["arm"] > 0
-        a = sc.poles["arm_dir"][arm]
-        tip = top[arm] + sc.poles["arm"][arm, None] * np.stack([np.sin(a), np.cos(a)], -1)
-        shadow_parts.append((strips(top[arm], tip, sc.poles["width"][arm] * 0.8, 6), dark[arm]))
+        top = base + sun.sdir * (poles["height"] * sun.cot)[:, None]
+        dark = sun.darkness(rng, m)
+        lay.shadow_parts.append((strips(base, top, poles["width"]), dark))
+        arm = poles["arm"] > 0
+        a = poles["arm_dir"][arm]
+        tip = top[arm] + poles["arm"][arm, None] * np.stack([np.sin(a), np.cos(a)], -1)
+        lay.shadow_parts.append((strips(top[arm], tip, poles["width"][arm] * 0.8, 6), dark[arm]))
+    return poles
 
-    # Buildings: boxes set back from the road.
+
+def _place_buildings(lay: _Layout) -> list[tuple[FloatArray, float, RGB]]:
+    """Buildings: boxes set back from the road (corners, height, colour); their shadows go
+    to ``lay.shadow_parts``."""
+    rng, style, route, s_lo, s_hi, sun = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi, lay.sun
+    half = route.width / 2.0
+    buildings: list[tuple[FloatArray, float, RGB]] = []
     for side in (-1.0, 1.0):
         for s in _positions(rng, s_lo, s_hi, style.buildings):
             depth, length = rng.uniform(6.0, 14.0), rng.uniform(7.0, 18.0)
@@ -658,50 +721,49 @@ def make_scenery(
                 continue
             height_b = rng.uniform(6.0, 16.0 if style.background == "city" else 11.0)
             colour = style.building_colours[int(rng.integers(len(style.building_colours)))]
-            sc.buildings.append((corners, height_b, colour))
-            if sun_out:
-                moved = corners + sdir * height_b * cot
+            buildings.append((corners, height_b, colour))
+            if sun.out:
+                moved = corners + sun.sdir * height_b * sun.cot
                 hull = _convex_hull(np.concatenate([corners, moved]).astype(np.float32))
-                shadow_parts.append((densify(hull, 0.5)[None], darkness(1)))
-    sc.shadows = PolySet.join(shadow_parts)
+                lay.shadow_parts.append((densify(hull, 0.5)[None], sun.darkness(rng, 1)))
+    return buildings
 
-    # Ground decals: tar repairs on the road, dark bushes beside it, puddles on the road.
-    def on_road(
-        per_100m: float, size: tuple[float, float], stretch: tuple[float, float], rough: float
-    ) -> PolySet:
-        s = _positions(rng, s_lo, s_hi, per_100m)
-        d = rng.uniform(-half + 0.8, half - 0.8, s.size)
-        xx, zz = route.offset(s, d)
-        _, _, hh = route.pose(s)
-        r = rng.uniform(*size, s.size)
-        polys = shapes(
-            np.stack([xx, zz], -1),
-            blobs(rng, s.size, 32, rough),
-            r * rng.uniform(*stretch, s.size),
-            r,
-            hh + rng.normal(0, 0.3, s.size),
-        )
-        return PolySet.join([(polys, np.ones(s.size))])
 
-    sc.tar = on_road(style.tar_patches, (0.5, 2.0), (1.0, 2.5), 0.25)
-    sc.puddles = on_road(style.puddles, (0.6, 2.0), (1.2, 3.0), 0.25)
+def _road_decals(
+    lay: _Layout, per_100m: float, size: tuple[float, float], stretch: tuple[float, float]
+) -> PolySet:
+    """Rough blobs lying on the road (tar repairs, puddles)."""
+    rng, route, s_lo, s_hi = lay.rng, lay.route, lay.s_lo, lay.s_hi
+    half = route.width / 2.0
+    s = _positions(rng, s_lo, s_hi, per_100m)
+    d = rng.uniform(-half + 0.8, half - 0.8, s.size)
+    xx, zz = route.offset(s, d)
+    _, _, hh = route.pose(s)
+    r = rng.uniform(*size, s.size)
+    polys = shapes(
+        np.stack([xx, zz], -1),
+        blobs(rng, s.size, 32, 0.25),
+        r * rng.uniform(*stretch, s.size),
+        r,
+        hh + rng.normal(0, 0.3, s.size),
+    )
+    return PolySet.join([(polys, np.ones(s.size))])
+
+
+def _bushes(lay: _Layout) -> PolySet:
+    """Dark bushes beside the road."""
+    rng, style, route, s_lo, s_hi = lay.rng, lay.style, lay.route, lay.s_lo, lay.s_hi
+    half = route.width / 2.0
     bx, bz, _ = _roadside(rng, route, s_lo, s_hi, style.dark_bushes, (1.0, 9.0), half + 0.8)
     r = rng.uniform(0.8, 2.5, bx.size)
-    sc.bushes = PolySet.join(
-        [
-            (
-                shapes(
-                    np.stack([bx, bz], -1),
-                    blobs(rng, bx.size, 32, 0.3),
-                    r * rng.uniform(1.0, 2.0, bx.size),
-                    r,
-                    rng.uniform(0, 2 * np.pi, bx.size),
-                ),
-                np.ones(bx.size),
-            )
-        ]
+    bushes = shapes(
+        np.stack([bx, bz], -1),
+        blobs(rng, bx.size, 32, 0.3),
+        r * rng.uniform(1.0, 2.0, bx.size),
+        r,
+        rng.uniform(0, 2 * np.pi, bx.size),
     )
-    return sc
+    return PolySet.join([(bushes, np.ones(bx.size))])
 
 
 def _pine_outlines(rng: np.random.Generator, n: int, tiers: int = 5) -> FloatArray:

@@ -18,6 +18,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.runtime.engine import FrameOutcome
+from qdcnn.vision.grouping import LaneFeatures
+from qdcnn.vision.overlays import (
+    GROUP_COLOURS,
+    LINE_COLOURS,
+    MIDDLE_COLOUR,
+    ROI_COLOUR,
+    TEXT_COLOUR,
+)
+from qdcnn.vision.roi import polygon_pixels
 
 
 class LaneDirectionProcessor:
@@ -139,22 +148,15 @@ def tint_mask(image: NDArray[np.uint8], mask: NDArray[np.bool_]) -> NDArray[np.u
     return out
 
 
-_GROUP_COLOURS = ((255, 140, 0), (30, 120, 255))  # overlays.GROUP_COLOURS
-_LINE_COLOURS = ((255, 210, 0), (0, 220, 255))
-_MIDDLE, _TEXT, _ROI = (0, 230, 0), (255, 255, 0), (255, 255, 255)
-
-
 @lru_cache(maxsize=8)
-def _roi_outline(shape: tuple[int, int], roi: tuple[tuple[float, float], ...]) -> Any:
-    from qdcnn.vision.roi import polygon_pixels
-
+def _roi_outline(shape: tuple[int, int], roi: tuple[tuple[float, float], ...]) -> NDArray[np.int32]:
     return np.rint(polygon_pixels(shape, roi)).astype(np.int32).reshape(-1, 1, 2)
 
 
 def draw_video_overlay(
     canvas: NDArray[np.uint8],
     segments: NDArray[np.float64],
-    lanes: Any,
+    lanes: LaneFeatures,
     decision: str | None,
     roi: tuple[tuple[float, float], ...] | None = None,
 ) -> NDArray[np.uint8]:
@@ -171,15 +173,15 @@ def draw_video_overlay(
     y_top, y_bottom = 0, h - 1
     if roi is not None:
         outline = _roi_outline((h, w), tuple(roi))
-        cv2.polylines(canvas, [outline], True, _ROI, 1)
+        cv2.polylines(canvas, [outline], True, ROI_COLOUR, 1)
         y_top, y_bottom = int(outline[:, 0, 1].min()), int(outline[:, 0, 1].max())
     seg = np.rint(np.asarray(segments, dtype=np.float64).reshape(-1, 4)).astype(np.int32)
     labels = np.asarray(lanes.labels)
     for group in (0, 1):
         chosen = seg[labels == group] if len(labels) == len(seg) else seg[:0]
         if len(chosen):
-            cv2.polylines(canvas, list(chosen.reshape(-1, 2, 2)), False, _GROUP_COLOURS[group], 2)
-    fits = [*zip(lanes.lines, _LINE_COLOURS, strict=False), (lanes.middle_line, _MIDDLE)]
+            cv2.polylines(canvas, list(chosen.reshape(-1, 2, 2)), False, GROUP_COLOURS[group], 2)
+    fits = [*zip(lanes.lines, LINE_COLOURS, strict=False), (lanes.middle_line, MIDDLE_COLOUR)]
     for line, colour in fits:
         if line is not None:
             a, b = line
@@ -193,7 +195,7 @@ def draw_video_overlay(
         (3, int(12 * scale)),
         cv2.FONT_HERSHEY_SIMPLEX,
         0.35 * scale,
-        _TEXT,
+        TEXT_COLOUR,
         1,
         cv2.LINE_AA,
     )
@@ -204,7 +206,7 @@ def draw_video_overlay(
             (3, int(32 * scale)),
             cv2.FONT_HERSHEY_SIMPLEX,
             0.6 * scale,
-            _TEXT,
+            TEXT_COLOUR,
             max(1, int(scale)),
             cv2.LINE_AA,
         )

@@ -22,11 +22,12 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from qdcnn._optional import has_torch
 from qdcnn._validation import check_int
 from qdcnn.config import GroupingConfig, LaneConfig, PipelineConfig
-from qdcnn.data.frames import load_frameset
+from qdcnn.data.frames import FrameSet, load_frameset
 from qdcnn.direction.features import compute_features
 from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import default_config, train_direction_model
@@ -71,40 +72,7 @@ def bench_pipeline(
     train = load_frameset(data, seed=seed + 1)
     test = load_frameset(data, seed=seed)
     images = [test.image(i) for i in range(min(frames, len(test)))]
-    rows = []
-    for method in methods:
-        grouping = get_method(method).grouping
-        assert grouping is not None
-        log(f"training {method}")
-        table = compute_features(train, cfg, (grouping,))
-        keep = table.readable
-        model = train_direction_model(
-            method, table.features[grouping][keep], train.labels()[keep], cfg, data, inner_folds=0
-        )
-        rng = np.random.default_rng(seed)
-        log(f"timing {method}")
-
-        def run(
-            image: np.ndarray, grouping: str = grouping, model: Any = model, rng: Any = rng
-        ) -> None:
-            lanes = process_frame(image, cfg, (grouping,), rng=rng).lanes[grouping]
-            model.predict(lanes.features)
-
-        run(images[0])
-        passes = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            for image in images:
-                run(image)
-            passes.append((time.perf_counter() - t0) / len(images))
-        per_frame = float(np.median(passes))
-        rows.append(
-            {
-                "method": method,
-                "ms_per_frame": 1e3 * per_frame,
-                "frames_per_second": 1.0 / per_frame,
-            }
-        )
+    rows = [_time_method(method, train, images, cfg, data, seed, log) for method in methods]
     result: dict[str, Any] = {
         "kind": "measured",
         "data": data,
@@ -131,6 +99,47 @@ def bench_pipeline(
             for arch in ("pilotnet", "resnet50")
         ]
     return result
+
+
+def _time_method(
+    method: str,
+    train: FrameSet,
+    images: list[NDArray[np.uint8]],
+    cfg: PipelineConfig,
+    data: str,
+    seed: int,
+    log: Callable[[str], None],
+) -> dict[str, Any]:
+    """Train ``method`` on ``train``, then time ``process_frame`` + its decision per frame
+    of ``images`` (after one warm-up frame; the median of three passes)."""
+    grouping = get_method(method).grouping
+    assert grouping is not None
+    log(f"training {method}")
+    table = compute_features(train, cfg, (grouping,))
+    keep = table.readable
+    model = train_direction_model(
+        method, table.features[grouping][keep], train.labels()[keep], cfg, data, inner_folds=0
+    )
+    rng = np.random.default_rng(seed)
+    log(f"timing {method}")
+
+    def run(image: np.ndarray) -> None:
+        lanes = process_frame(image, cfg, (grouping,), rng=rng).lanes[grouping]
+        model.predict(lanes.features)
+
+    run(images[0])
+    passes = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for image in images:
+            run(image)
+        passes.append((time.perf_counter() - t0) / len(images))
+    per_frame = float(np.median(passes))
+    return {
+        "method": method,
+        "ms_per_frame": 1e3 * per_frame,
+        "frames_per_second": 1.0 / per_frame,
+    }
 
 
 def lane_stage_config() -> PipelineConfig:

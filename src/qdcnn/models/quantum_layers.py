@@ -77,15 +77,8 @@ class QuantumHead(nn.Module):
     shot_seed : int
         Seed of the shot sampler.
     readout_gain : float
-        Fixed factor on ``<Z_i>`` before the linear read-out. The expectations lie in
-        ``[-1, 1]`` and PyTorch initialises the read-out's weights in
-        ``[-1/sqrt(n), 1/sqrt(n)]``, so without a gain the logits start within about
-        ``+-1.5``. Trained on the first 80 % of the mountain recording's frames and
-        scored on the last 20 %, the hybrid then stayed at the majority class (gain 1:
-        0.43, the majority's share; gain 4: 0.48; gain 10: 0.68). That last block is
-        also the last test fold of a 5-fold evaluation of that recording, so such an
-        evaluation is not independent of this choice. The classical twin
-        (:class:`RingMLPHead`) takes the same gain.
+        Fixed factor on ``<Z_i>`` before the linear read-out (:class:`RingMLPHead` takes
+        the same gain); why 10 and the experiment behind it: ``docs/readout-gain.md``.
     """
 
     def __init__(

@@ -255,6 +255,22 @@ def detect_lbp(
        recognize shadows in monochromatic natural images", Proc. IEEE CVPR,
        pp. 223-230, 2010.
     """
+    _check_lbp_arguments(points, radius, window, texture_weight, max_samples)
+    grey = to_grey(image)
+    if grey.min() == grey.max():
+        return np.zeros(grey.shape, dtype=bool)
+
+    features = _local_lbp_features(grey, int(points), float(radius), int(window))
+    features[:, :, 1:] *= texture_weight
+    shadow = _darker_class(features.reshape(-1, features.shape[2]), max_samples, seed)
+    if shadow is None:
+        return np.zeros(grey.shape, dtype=bool)
+    return shadow.reshape(grey.shape)
+
+
+def _check_lbp_arguments(
+    points: int, radius: float, window: int, texture_weight: float, max_samples: int
+) -> None:
     if not isinstance(points, (int, np.integer)) or not 4 <= points <= 24:
         raise ParameterError("points", points, "an integer in [4, 24]")
     if not 0 < radius <= 16:
@@ -265,21 +281,21 @@ def detect_lbp(
         raise ParameterError("texture_weight", texture_weight, "a number in [0, 100]")
     if not isinstance(max_samples, (int, np.integer)) or max_samples < 100:
         raise ParameterError("max_samples", max_samples, "an integer >= 100")
-    grey = to_grey(image)
-    if grey.min() == grey.max():
-        return np.zeros(grey.shape, dtype=bool)
 
-    features = _local_lbp_features(grey, int(points), float(radius), int(window))
-    features[:, :, 1:] *= texture_weight
-    flat = features.reshape(-1, features.shape[2])
+
+def _darker_class(
+    flat: NDArray[np.float32], max_samples: int, seed: int
+) -> NDArray[np.bool_] | None:
+    """Pixels (rows of ``flat``) in the darker of two k-means classes, fitted on at most
+    ``max_samples`` of them; None when the sample holds fewer than two distinct rows."""
     rng = np.random.default_rng(seed)
     fit = flat if len(flat) <= max_samples else flat[rng.choice(len(flat), max_samples, False)]
     if len(np.unique(fit, axis=0)) < 2:
-        return np.zeros(grey.shape, dtype=bool)
+        return None
     # One OpenMP thread: the problem is small, and scikit-learn's threaded
     # k-means slows down by orders of magnitude when the cores are busy.
     with single_thread():
         kmeans = KMeans(n_clusters=2, n_init=3, random_state=seed).fit(fit)
         labels = kmeans.predict(flat)
     shadow_cluster = int(np.argmin(kmeans.cluster_centers_[:, 0]))
-    return np.asarray(labels == shadow_cluster).reshape(grey.shape)
+    return np.asarray(labels == shadow_cluster)

@@ -225,12 +225,7 @@ def camera_roi(
         raise ParameterError("horizon, vp_x", (horizon, vp_x), "a horizon in [0, 0.95)")
     aspect = (h - 1) / max(w - 1, 1)
     y_top = min(horizon + top_gap, 0.97)
-    if isinstance(side_slope, tuple):
-        slope_l, slope_r = float(side_slope[0]), float(side_slope[1])
-    else:
-        slope_l = slope_r = float(side_slope)
-    if not all(0.1 <= float(v) <= 20.0 for v in (slope_l, slope_r)):
-        raise ParameterError("side_slope", side_slope, "pixels per pixel in [0.1, 20]")
+    slope_l, slope_r = _side_slopes(side_slope)
     left_top = vp_x - curve_margin - slope_l * (y_top - horizon) * aspect
     right_top = vp_x + curve_margin + slope_r * (y_top - horizon) * aspect
     y_left = horizon + (vp_x - curve_margin) / (slope_l * aspect)
@@ -261,6 +256,17 @@ def camera_roi(
         bottom_right, notch, bottom_left = [pts[-1]], pts[-2:0:-1], [pts[0]]
     polygon = bottom_left + left + top + right + bottom_right + notch
     return tuple((round(x, 6), round(y, 6)) for x, y in polygon)
+
+
+def _side_slopes(side_slope: float | tuple[float, float]) -> tuple[float, float]:
+    """:func:`camera_roi`'s ``side_slope`` as checked ``(left, right)`` slopes."""
+    if isinstance(side_slope, tuple):
+        slope_l, slope_r = float(side_slope[0]), float(side_slope[1])
+    else:
+        slope_l = slope_r = float(side_slope)
+    if not all(0.1 <= float(v) <= 20.0 for v in (slope_l, slope_r)):
+        raise ParameterError("side_slope", side_slope, "pixels per pixel in [0.1, 20]")
+    return slope_l, slope_r
 
 
 def _clipped_roi(
@@ -498,15 +504,8 @@ def estimate_camera(
     base = preset or LaneConfig.dashcam()
     if len(frames) == 0:
         raise InputError("frames", "no frames to estimate the camera from")
-    first = frames[0]
-    shape = (int(first.shape[0]), int(first.shape[1]))
     notes: list[str] = []
-    same = [f for f in frames if tuple(f.shape[:2]) == shape]
-    if len(same) < len(frames):
-        notes.append(
-            f"{len(frames) - len(same)} of {len(frames)} frames differ in size from the "
-            f"first ({shape[1]}x{shape[0]}): left out of the camera estimate"
-        )
+    shape, same = _same_size_frames(frames, notes)
     greys = np.stack([to_grey(working_frame(f, WORK_WIDTH)) for f in same])
     hood, fraction, hood_notes = (None, 0.0, []) if len(greys) < 3 else detect_hood(greys)
     notes += hood_notes
@@ -517,18 +516,7 @@ def estimate_camera(
         )
         return _preset_geometry(base, shape, None, len(same), notes)
     wh, ww = greys.shape[1:]
-    hood_top_px = 0 if hood is None else int(np.floor(hood.min() * (wh - 1)))
-    points = []
-    for grey in greys:
-        seg = border_segments(grey)
-        if hood is not None and len(seg):
-            cols = np.clip(np.round(seg[:, [0, 2]]).astype(int), 0, ww - 1)
-            limit = hood[cols] * (wh - 1)
-            seg = seg[(seg[:, [1, 3]] < limit - 1).all(axis=1)]
-        found = vanishing_point(seg, (wh, ww)) if len(seg) else None
-        if found is not None and min(found.left_support, found.right_support) >= MIN_SUPPORT * wh:
-            if hood is None or found.y < hood_top_px:
-                points.append((found.x, found.y, found.left_slope, found.right_slope))
+    points = _vanishing_points(greys, hood)
     hood_rows = None if hood is None else _sample_profile(hood)
     needed = max(min_frames, int(np.ceil(0.25 * len(greys))))
     if len(points) < needed:
@@ -546,22 +534,7 @@ def estimate_camera(
             f"horizon estimate at {yv:.0%} of the height is implausible: using the preset's"
         )
         return _preset_geometry(base, shape, hood_rows, len(same), notes)
-    inner = np.nanmedian(pts[:, 2:4], axis=0)
-    slopes = tuple(
-        float(np.clip(ROI_SLOPE_SCALE * v + ROI_SLOPE_ADD, *ROI_SLOPES))
-        if np.isfinite(v)
-        else ROI_SLOPES[1]
-        for v in inner
-    )
-    roi = camera_roi(
-        shape,
-        yv,
-        xv,
-        hood_rows,
-        top_gap=ROI_TOP_GAP,
-        side_slope=(slopes[0], slopes[1]),
-        curve_margin=ROI_CURVE_MARGIN,
-    )
+    roi = _estimated_roi(shape, xv, yv, hood_rows, np.nanmedian(pts[:, 2:4], axis=0))
     if not _usable(shape, roi):
         notes.append("the ROI built from the estimate is empty: using the preset's")
         return _preset_geometry(base, shape, hood_rows, len(same), notes)
@@ -576,6 +549,68 @@ def estimate_camera(
         len(same),
         spread,
         tuple(notes),
+    )
+
+
+def _same_size_frames(
+    frames: Sequence[NDArray[np.uint8]], notes: list[str]
+) -> tuple[tuple[int, int], list[NDArray[np.uint8]]]:
+    """The first frame's ``(H, W)`` and the frames of that size (a note for the others)."""
+    first = frames[0]
+    shape = (int(first.shape[0]), int(first.shape[1]))
+    same = [f for f in frames if tuple(f.shape[:2]) == shape]
+    if len(same) < len(frames):
+        notes.append(
+            f"{len(frames) - len(same)} of {len(frames)} frames differ in size from the "
+            f"first ({shape[1]}x{shape[0]}): left out of the camera estimate"
+        )
+    return shape, same
+
+
+def _vanishing_points(
+    greys: NDArray[np.uint8], hood: NDArray[np.float64] | None
+) -> list[tuple[float, float, float, float]]:
+    """``(x, y, left slope, right slope)`` of each frame's well-supported vanishing point
+    above the hood (border segments reaching onto the hood are left out)."""
+    wh, ww = greys.shape[1:]
+    hood_top_px = 0 if hood is None else int(np.floor(hood.min() * (wh - 1)))
+    points = []
+    for grey in greys:
+        seg = border_segments(grey)
+        if hood is not None and len(seg):
+            cols = np.clip(np.round(seg[:, [0, 2]]).astype(int), 0, ww - 1)
+            limit = hood[cols] * (wh - 1)
+            seg = seg[(seg[:, [1, 3]] < limit - 1).all(axis=1)]
+        found = vanishing_point(seg, (wh, ww)) if len(seg) else None
+        if found is not None and min(found.left_support, found.right_support) >= MIN_SUPPORT * wh:
+            if hood is None or found.y < hood_top_px:
+                points.append((found.x, found.y, found.left_slope, found.right_slope))
+    return points
+
+
+def _estimated_roi(
+    shape: tuple[int, int],
+    xv: float,
+    yv: float,
+    hood_rows: tuple[float, ...] | None,
+    inner: NDArray[np.float64],
+) -> tuple[tuple[float, float], ...]:
+    """The ROI for an estimated vanishing point, its sides following the median inner
+    border slopes ``inner`` (left, right; the upper end of ROI_SLOPES where unknown)."""
+    slopes = tuple(
+        float(np.clip(ROI_SLOPE_SCALE * v + ROI_SLOPE_ADD, *ROI_SLOPES))
+        if np.isfinite(v)
+        else ROI_SLOPES[1]
+        for v in inner
+    )
+    return camera_roi(
+        shape,
+        yv,
+        xv,
+        hood_rows,
+        top_gap=ROI_TOP_GAP,
+        side_slope=(slopes[0], slopes[1]),
+        curve_margin=ROI_CURVE_MARGIN,
     )
 
 

@@ -294,53 +294,15 @@ def group_segments(
     if method not in METHODS:
         raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
     names = feature_names(extra_features)
-    seg = np.asarray(segments, dtype=np.float64)
-    if seg.size == 0:
-        seg = seg.reshape(0, 4)
-    if seg.ndim != 2 or seg.shape[1] != 4 or not np.isfinite(seg).all():
-        raise InputError("segments", f"expected a finite (N, 4) array, got shape {seg.shape}")
-    if len(shape) < 2 or shape[0] < 1 or shape[1] < 1:
-        raise InputError("shape", f"expected (H, W), got {tuple(shape)}")
-    h, w = int(shape[0]), int(shape[1])
-    if merge_tolerance is not None and not (
-        isinstance(merge_tolerance, int | float) and 0.0 <= merge_tolerance <= 1.0
-    ):
-        raise ParameterError("merge_tolerance", merge_tolerance, "None or a number in [0, 1]")
-
-    mid_x = 0.5 * (seg[:, 0] + seg[:, 2])
-    centre = 0.5 * (w - 1)
-    if method == "image-split":
-        labels = (mid_x >= centre).astype(np.int64)
-    else:
-        labels = _cluster(segment_descriptors(seg, w), method, seed)
-        # left group first: order clusters by their mean midpoint x
-        groups = [g for g in (0, 1) if np.any(labels == g)]
-        if len(groups) == 2:
-            if mid_x[labels == 0].mean() > mid_x[labels == 1].mean():
-                labels = 1 - labels
-        elif len(groups) == 1:
-            labels = np.full(len(seg), int(mid_x.mean() >= centre), dtype=np.int64)
-
+    seg, h, w = _checked_segments(segments, shape, merge_tolerance)
+    labels = _left_right_labels(seg, method, seed, w)
     if inner_lines:
         labels = _inner_line_labels(seg, labels, h, w)
-    kept = labels < LEFT_OUT
-    lines = [fit_line(seg[labels == g]) for g in (0, 1)]
-    merged = None
+    lines: list[tuple[float, float] | None] = [fit_line(seg[labels == g]) for g in (0, 1)]
     if merge_tolerance is not None and lines[0] is not None and lines[1] is not None:
-        merged = _one_line(seg[kept], merge_tolerance * w)
-    if merged is not None:
-        slot = int(mid_x[kept].mean() >= centre)
-        labels = np.where(kept, slot, LEFT_OUT).astype(np.int64)
-        lines = [None, None]
-        lines[slot] = merged
+        labels, lines = _merge_one_line(seg, labels, lines, merge_tolerance * w, w)
     n_lines = sum(line is not None for line in lines)
     status: Status = ("no-lines", "one-line", "ok")[n_lines]
-    middle = None
-    if lines[0] is not None and lines[1] is not None:
-        middle = (
-            0.5 * (lines[0][0] + lines[1][0]),
-            0.5 * (lines[0][1] + lines[1][1]),
-        )
     values = feature_values(lines, extra_features, h, w, seg, labels)
     return LaneFeatures(
         features=values,
@@ -351,9 +313,74 @@ def group_segments(
         method=method,
         feature_names=names,
         shape=(h, w),
-        middle_line=middle,
+        middle_line=_middle_line(lines),
         segments=seg,
     )
+
+
+def _checked_segments(
+    segments: NDArray[np.float64], shape: tuple[int, ...], merge_tolerance: float | None
+) -> tuple[NDArray[np.float64], int, int]:
+    """Check :func:`group_segments`' inputs; the segments as ``(N, 4)`` floats, H and W."""
+    seg = np.asarray(segments, dtype=np.float64)
+    if seg.size == 0:
+        seg = seg.reshape(0, 4)
+    if seg.ndim != 2 or seg.shape[1] != 4 or not np.isfinite(seg).all():
+        raise InputError("segments", f"expected a finite (N, 4) array, got shape {seg.shape}")
+    if len(shape) < 2 or shape[0] < 1 or shape[1] < 1:
+        raise InputError("shape", f"expected (H, W), got {tuple(shape)}")
+    if merge_tolerance is not None and not (
+        isinstance(merge_tolerance, int | float) and 0.0 <= merge_tolerance <= 1.0
+    ):
+        raise ParameterError("merge_tolerance", merge_tolerance, "None or a number in [0, 1]")
+    return seg, int(shape[0]), int(shape[1])
+
+
+def _left_right_labels(
+    seg: NDArray[np.float64], method: str, seed: int, w: int
+) -> NDArray[np.int64]:
+    """Group 0 (left) or 1 (right) per segment, by ``method``."""
+    mid_x = 0.5 * (seg[:, 0] + seg[:, 2])
+    centre = 0.5 * (w - 1)
+    if method == "image-split":
+        return (mid_x >= centre).astype(np.int64)
+    labels = _cluster(segment_descriptors(seg, w), method, seed)
+    # left group first: order clusters by their mean midpoint x
+    groups = [g for g in (0, 1) if np.any(labels == g)]
+    if len(groups) == 2:
+        if mid_x[labels == 0].mean() > mid_x[labels == 1].mean():
+            labels = 1 - labels
+    elif len(groups) == 1:
+        labels = np.full(len(seg), int(mid_x.mean() >= centre), dtype=np.int64)
+    return labels
+
+
+def _merge_one_line(
+    seg: NDArray[np.float64],
+    labels: NDArray[np.int64],
+    lines: list[tuple[float, float] | None],
+    tolerance_px: float,
+    w: int,
+) -> tuple[NDArray[np.int64], list[tuple[float, float] | None]]:
+    """The labels and lines after merging both groups into one line when one line fits all
+    the kept segments within ``tolerance_px`` (unchanged when it does not)."""
+    kept = labels < LEFT_OUT
+    merged = _one_line(seg[kept], tolerance_px)
+    if merged is None:
+        return labels, lines
+    mid_x = 0.5 * (seg[:, 0] + seg[:, 2])
+    slot = int(mid_x[kept].mean() >= 0.5 * (w - 1))
+    one: list[tuple[float, float] | None] = [None, None]
+    one[slot] = merged
+    return np.where(kept, slot, LEFT_OUT).astype(np.int64), one
+
+
+def _middle_line(lines: list[tuple[float, float] | None]) -> tuple[float, float] | None:
+    """The centre line between the two fitted lines (None unless both are fitted)."""
+    left, right = lines
+    if left is None or right is None:
+        return None
+    return (0.5 * (left[0] + right[0]), 0.5 * (left[1] + right[1]))
 
 
 def _inner_line_labels(

@@ -26,6 +26,8 @@ ROI_COLOUR = (255, 255, 255)
 TEXT_COLOUR = (255, 255, 0)
 CAMERA_COLOUR = (255, 0, 255)  # horizon, vanishing point and hood line of a CameraGeometry
 
+_Point = Callable[[float, float], tuple[int, int]]  # frame pixel to canvas pixel
+
 
 def draw_lane_overlay(
     image: NDArray[np.uint8],
@@ -82,36 +84,74 @@ def draw_lane_overlay(
             "segments", f"{len(seg)} segments but {len(features.labels)} labels in features"
         )
     h, w = canvas.shape[:2]
-    if scale > 1:
-        canvas = np.asarray(
-            cv2.resize(canvas, (w * scale, h * scale), interpolation=cv2.INTER_NEAREST),
-            dtype=np.uint8,
-        )
-    thin, thick = scale, 2 * scale
+    canvas = _upscaled(canvas, scale)
+    thin, pt = scale, _block_centre(scale)
+    rows = _draw_roi(canvas, roi, (h, w), pt, thin)
+    if features.method == "image-split":
+        xc = 0.5 * (w - 1)
+        _dashed(canvas, pt(xc, rows[0]), pt(xc, rows[1]), MIDDLE_COLOUR, thin, 4 * scale)
+    if camera is not None:
+        _draw_camera(canvas, camera, (h, w), pt, thin, scale)
+    for (x1, y1, x2, y2), group in zip(seg, features.labels, strict=True):
+        colour = GROUP_COLOURS[int(group)] if group in (0, 1) else LEFT_OUT_COLOUR
+        cv2.line(canvas, pt(x1, y1), pt(x2, y2), colour, 2 * scale, cv2.LINE_AA)
+    _draw_fits(canvas, features, rows, pt, thin)
+    _draw_captions(canvas, features, columns, direction, camera, h, pt, scale)
+    return canvas
+
+
+def _block_centre(scale: int) -> _Point:
+    """Frame pixel ``(x, y)`` to the canvas upscaled ``scale`` times."""
 
     def pt(x: float, y: float) -> tuple[int, int]:
         # pixel centres map to the centre of the upscaled block
         return round((x + 0.5) * scale - 0.5), round((y + 0.5) * scale - 0.5)
 
-    y_top, y_bottom = 0.0, float(h - 1)
-    if roi is not None:
-        poly = polygon_pixels((h, w), roi).astype(np.float64)
-        y_top, y_bottom = float(poly[:, 1].min()), float(poly[:, 1].max())
-        outline = np.array([pt(x, y) for x, y in poly], dtype=np.int32)
-        cv2.polylines(canvas, [outline], True, ROI_COLOUR, thin, cv2.LINE_AA)
+    return pt
+
+
+def _upscaled(canvas: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
+    if scale == 1:
+        return canvas
+    h, w = canvas.shape[:2]
+    return np.asarray(
+        cv2.resize(canvas, (w * scale, h * scale), interpolation=cv2.INTER_NEAREST),
+        dtype=np.uint8,
+    )
+
+
+def _draw_roi(
+    canvas: NDArray[np.uint8],
+    roi: Sequence[tuple[float, float]] | None,
+    shape: tuple[int, int],
+    pt: _Point,
+    thin: int,
+) -> tuple[float, float]:
+    """Outline the ROI (if any); return its top and bottom rows (the frame's without one)."""
+    h, w = shape
+    if roi is None:
+        return 0.0, float(h - 1)
+    poly = polygon_pixels((h, w), roi).astype(np.float64)
+    outline = np.array([pt(x, y) for x, y in poly], dtype=np.int32)
+    cv2.polylines(canvas, [outline], True, ROI_COLOUR, thin, cv2.LINE_AA)
+    return float(poly[:, 1].min()), float(poly[:, 1].max())
+
+
+def _draw_fits(
+    canvas: NDArray[np.uint8],
+    features: LaneFeatures,
+    rows: tuple[float, float],
+    pt: _Point,
+    thin: int,
+) -> None:
+    """Each group's fitted line ``x = a * y + b`` over ``rows`` (and image-split's centre)."""
+    y_top, y_bottom = rows
+    fits = list(zip(features.lines, LINE_COLOURS, strict=False))
     if features.method == "image-split":
-        xc = 0.5 * (w - 1)
-        _dashed(canvas, pt(xc, y_top), pt(xc, y_bottom), MIDDLE_COLOUR, thin, 4 * scale)
-    if camera is not None:
-        _draw_camera(canvas, camera, (h, w), pt, thin, scale)
-
-    for (x1, y1, x2, y2), group in zip(seg, features.labels, strict=True):
-        colour = GROUP_COLOURS[int(group)] if group in (0, 1) else LEFT_OUT_COLOUR
-        cv2.line(canvas, pt(x1, y1), pt(x2, y2), colour, thick, cv2.LINE_AA)
-
-    def draw_fit(line: tuple[float, float] | None, colour: tuple[int, int, int]) -> None:
+        fits.append((features.middle_line, MIDDLE_COLOUR))
+    for line, colour in fits:
         if line is None:
-            return
+            continue
         a, b = line
         cv2.line(
             canvas,
@@ -122,11 +162,19 @@ def draw_lane_overlay(
             cv2.LINE_AA,
         )
 
-    for line, colour in zip(features.lines, LINE_COLOURS, strict=False):
-        draw_fit(line, colour)
-    if features.method == "image-split":
-        draw_fit(features.middle_line, MIDDLE_COLOUR)
 
+def _draw_captions(
+    canvas: NDArray[np.uint8],
+    features: LaneFeatures,
+    columns: tuple[int, int],
+    direction: str | None,
+    camera: CameraGeometry | None,
+    h: int,
+    pt: _Point,
+    scale: int,
+) -> None:
+    """Method and status, the classifier's two inputs, the camera's horizon and the
+    direction."""
     if len(columns) != 2 or not all(0 <= c < len(features.features) for c in columns):
         raise ParameterError("columns", columns, f"two indices below {len(features.features)}")
     names = features.feature_names
@@ -166,14 +214,13 @@ def draw_lane_overlay(
             max(1, scale),
             cv2.LINE_AA,
         )
-    return canvas
 
 
 def _draw_camera(
     canvas: NDArray[np.uint8],
     camera: CameraGeometry,
     shape: tuple[int, int],
-    pt: Callable[[float, float], tuple[int, int]],
+    pt: _Point,
     thin: int,
     scale: int,
 ) -> None:

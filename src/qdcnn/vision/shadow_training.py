@@ -187,71 +187,12 @@ def train_multi_shadow_model(
         With ``features``, ``centroids`` and ``thresholds`` set; ``meta`` records
         the training set size and the final training error.
     """
-    from sklearn.cluster import KMeans
-
     cfg = config or ShadowConfig()
-    if len(images) != len(masks) or not images:
-        raise ParameterError(
-            "images/masks", f"{len(images)}/{len(masks)}", "equal, non-zero counts"
-        )
-    if not features or any(f not in FEATURES for f in features):
-        raise ParameterError("features", features, "a non-empty tuple of " + str(FEATURES))
-    if (
-        isinstance(n_centroids, bool)
-        or not isinstance(n_centroids, int)
-        or not 1 <= n_centroids <= 8
-    ):
-        raise ParameterError("n_centroids", n_centroids, "an integer in [1, 8]")
-    grid = np.unique(np.asarray(thresholds, dtype=np.float64))
-    if grid.size == 0 or grid[0] < 0.0 or grid[-1] > 1.0:
-        raise ParameterError("thresholds", thresholds, "a non-empty set of numbers in [0, 1]")
-    values, fractions = [], []
-    for image, mask in zip(images, masks, strict=True):
-        geometry = block_grid(image.shape[:2], cfg.downsample, cfg.grid)
-        values.append(
-            np.stack(
-                [
-                    block_means(feature_input(image, f), geometry, cfg.downsample).ravel()
-                    for f in features
-                ]
-            )
-        )
-        fractions.append(block_shadow_fraction(mask, cfg).ravel())
-    v, frac = np.concatenate(values, axis=1), np.concatenate(fractions)
-    shadow_values = v[:, frac >= 0.5].T
-    if len(shadow_values) < n_centroids:
-        raise ParameterError(
-            "masks",
-            f"{len(shadow_values)} shadow blocks",
-            f"at least {n_centroids} blocks that are half shadow",
-        )
-    labels = KMeans(n_clusters=n_centroids, n_init=10, random_state=seed).fit_predict(shadow_values)
-    centroids = np.array(
-        [
-            [
-                train_centroid(
-                    shadow_values[labels == j, f],
-                    cfg,
-                    start=float(shadow_values[labels == j, f].mean()),
-                )
-                for f in range(len(features))
-            ]
-            for j in range(n_centroids)
-        ]
-    )
-    order = np.lexsort(centroids.T[::-1])  # a deterministic component order
-    centroids = centroids[order]
-    start = np.zeros(centroids.shape, dtype=np.intp)
-    for j, cluster in enumerate(order):
-        for f in range(len(features)):
-            members = fidelity(
-                value_to_angle(centroids[j, f]),
-                value_to_angle(shadow_values[labels == cluster, f]),
-                shots=None,
-            )
-            # the narrowest candidate band that holds START_COVERAGE of the cluster
-            q = np.quantile(members, 1.0 - START_COVERAGE)
-            start[j, f] = max(int(np.searchsorted(grid, q, side="right")) - 1, 0)
+    grid = _check_multi_arguments(images, masks, features, n_centroids, thresholds)
+    v, frac = _block_values(images, masks, cfg, features)
+    shadow_values = _shadow_blocks(v, frac, n_centroids)
+    labels, centroids, order = _cluster_centroids(shadow_values, cfg, n_centroids, seed)
+    start = _start_thresholds(shadow_values, labels, centroids, order, grid)
     chosen, ber = _fit_thresholds(v, frac, centroids, grid, start, max_rounds)
     meta = {
         "trained_on": "images+masks",
@@ -271,6 +212,116 @@ def train_multi_shadow_model(
         tuple(tuple(float(c) for c in row) for row in centroids),
         tuple(tuple(float(t) for t in row) for row in chosen),
     )
+
+
+def _check_multi_arguments(
+    images: list[NDArray[np.uint8]],
+    masks: list[NDArray[np.bool_]],
+    features: tuple[str, ...],
+    n_centroids: int,
+    thresholds: tuple[float, ...],
+) -> NDArray[np.float64]:
+    """Check :func:`train_multi_shadow_model`'s arguments; the sorted threshold grid."""
+    if len(images) != len(masks) or not images:
+        raise ParameterError(
+            "images/masks", f"{len(images)}/{len(masks)}", "equal, non-zero counts"
+        )
+    if not features or any(f not in FEATURES for f in features):
+        raise ParameterError("features", features, "a non-empty tuple of " + str(FEATURES))
+    if (
+        isinstance(n_centroids, bool)
+        or not isinstance(n_centroids, int)
+        or not 1 <= n_centroids <= 8
+    ):
+        raise ParameterError("n_centroids", n_centroids, "an integer in [1, 8]")
+    grid = np.unique(np.asarray(thresholds, dtype=np.float64))
+    if grid.size == 0 or grid[0] < 0.0 or grid[-1] > 1.0:
+        raise ParameterError("thresholds", thresholds, "a non-empty set of numbers in [0, 1]")
+    return grid
+
+
+def _block_values(
+    images: list[NDArray[np.uint8]],
+    masks: list[NDArray[np.bool_]],
+    cfg: ShadowConfig,
+    features: tuple[str, ...],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Block means of every feature ``(n_features, n_blocks)`` and the blocks' shadow
+    fractions, over all images."""
+    values, fractions = [], []
+    for image, mask in zip(images, masks, strict=True):
+        geometry = block_grid(image.shape[:2], cfg.downsample, cfg.grid)
+        values.append(
+            np.stack(
+                [
+                    block_means(feature_input(image, f), geometry, cfg.downsample).ravel()
+                    for f in features
+                ]
+            )
+        )
+        fractions.append(block_shadow_fraction(mask, cfg).ravel())
+    return np.concatenate(values, axis=1), np.concatenate(fractions)
+
+
+def _shadow_blocks(
+    values: NDArray[np.float64], fraction: NDArray[np.float64], n_centroids: int
+) -> NDArray[np.float64]:
+    """Feature values ``(n_blocks, n_features)`` of the blocks that are at least half shadow."""
+    shadow_values = values[:, fraction >= 0.5].T
+    if len(shadow_values) < n_centroids:
+        raise ParameterError(
+            "masks",
+            f"{len(shadow_values)} shadow blocks",
+            f"at least {n_centroids} blocks that are half shadow",
+        )
+    return shadow_values
+
+
+def _cluster_centroids(
+    shadow_values: NDArray[np.float64], cfg: ShadowConfig, n_centroids: int, seed: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.intp]]:
+    """K-means labels of the shadow blocks, the trained centroids ``(k, n_features)`` in a
+    deterministic order, and that order (cluster of each centroid row)."""
+    from sklearn.cluster import KMeans
+
+    labels = KMeans(n_clusters=n_centroids, n_init=10, random_state=seed).fit_predict(shadow_values)
+    centroids = np.array(
+        [
+            [
+                train_centroid(
+                    shadow_values[labels == j, f],
+                    cfg,
+                    start=float(shadow_values[labels == j, f].mean()),
+                )
+                for f in range(shadow_values.shape[1])
+            ]
+            for j in range(n_centroids)
+        ]
+    )
+    order = np.lexsort(centroids.T[::-1])  # a deterministic component order
+    return labels, centroids[order], order
+
+
+def _start_thresholds(
+    shadow_values: NDArray[np.float64],
+    labels: NDArray[np.int64],
+    centroids: NDArray[np.float64],
+    order: NDArray[np.intp],
+    grid: NDArray[np.float64],
+) -> NDArray[np.intp]:
+    """Per (component, feature): the grid index of the narrowest candidate band that holds
+    :data:`START_COVERAGE` of the component's cluster."""
+    start = np.zeros(centroids.shape, dtype=np.intp)
+    for j, cluster in enumerate(order):
+        for f in range(centroids.shape[1]):
+            members = fidelity(
+                value_to_angle(centroids[j, f]),
+                value_to_angle(shadow_values[labels == cluster, f]),
+                shots=None,
+            )
+            q = np.quantile(members, 1.0 - START_COVERAGE)
+            start[j, f] = max(int(np.searchsorted(grid, q, side="right")) - 1, 0)
+    return start
 
 
 def _fit_thresholds(

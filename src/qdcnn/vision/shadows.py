@@ -592,12 +592,7 @@ def detect_shadows_uu(
     geometry = block_grid(values.shape[:2], cfg.downsample, cfg.grid)
     sums, area = block_sums(values, geometry, cfg.downsample)
     blocks = (sums / area).reshape(geometry.grid_shape)
-    if cfg.centroid is not None:
-        centroid, source = float(cfg.centroid), "given"
-    elif model is not None:
-        centroid, source = model.centroid, "model"
-    else:
-        centroid, source = calibrate_centroid(blocks, cfg.feature, cfg), "calibrated"
+    centroid, source = _centroid_of(cfg, model, blocks)
     lookup = None
     if backend == "numpy" and (noise is None or noise.is_ideal) and values.dtype == np.uint8:
         lookup = state_lookup(geometry, values.shape[1], cfg.downsample)
@@ -611,15 +606,7 @@ def detect_shadows_uu(
             rng=rng,
         )
     else:
-        index = lookup.offsets + sums
-        scores = overlap_fidelity(
-            float(value_to_angle(centroid)),
-            lookup.cos_half.take(index),
-            lookup.sin_half.take(index),
-        )
-        if cfg.shots is not None:
-            exact = np.stack([scores, 1.0 - scores], axis=1)
-            scores = sample_probabilities(exact, cfg.shots, rng)[:, 0]
+        scores = _looked_up_scores(lookup, sums, centroid, cfg.shots, rng)
     scores = scores.reshape(blocks.shape)
     block_mask = scores >= cfg.threshold
     return ShadowDetection(
@@ -632,6 +619,39 @@ def detect_shadows_uu(
         source,
         block_mask,
     )
+
+
+def _centroid_of(
+    cfg: ShadowConfig, model: ShadowModel | None, blocks: NDArray[np.float64]
+) -> tuple[float, str]:
+    """The centroid to test against and where it comes from: the config's, the model's or
+    calibrated on this image's blocks."""
+    if cfg.centroid is not None:
+        return float(cfg.centroid), "given"
+    if model is not None:
+        return model.centroid, "model"
+    return calibrate_centroid(blocks, cfg.feature, cfg), "calibrated"
+
+
+def _looked_up_scores(
+    lookup: StateLookup,
+    sums: NDArray[Any],
+    centroid: float,
+    shots: int | None,
+    rng: int | np.random.Generator | None,
+) -> NDArray[np.float64]:
+    """Block fidelities from the test states looked up by block sum (exact, or sampled
+    with ``shots``)."""
+    index = lookup.offsets + sums
+    scores = overlap_fidelity(
+        float(value_to_angle(centroid)),
+        lookup.cos_half.take(index),
+        lookup.sin_half.take(index),
+    )
+    if shots is not None:
+        exact = np.stack([scores, 1.0 - scores], axis=1)
+        scores = sample_probabilities(exact, shots, rng)[:, 0]
+    return scores
 
 
 def _to_image_mask(
