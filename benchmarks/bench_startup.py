@@ -6,7 +6,9 @@ within 0.5 s. Each time is the **measured** wall-clock time of a fresh interpret
 commands run in rounds, one of each per round, so a change of load on a shared machine
 touches all of them alike; ``python -c pass`` in the same rounds is the floor any Python
 command pays. ``qdcnn`` is run as ``python -m qdcnn`` with this interpreter (what the
-``qdcnn`` script does, without the script's own ``python`` lookup).
+``qdcnn`` script does, without the script's own ``python`` lookup). Beside the wall time,
+the CPU time of each child (user + system, ``getrusage``) is reported: on a busy machine the
+wall time includes waiting for a core, the CPU time does not.
 
 Usage::
 
@@ -19,6 +21,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import statistics
 import subprocess
 import sys
@@ -37,37 +40,46 @@ COMMANDS: dict[str, tuple[tuple[str, ...], int]] = {
 FLOOR = "python -c pass"
 
 
-def wall_seconds(argv: tuple[str, ...], status: int) -> float:
-    """Measured wall time of one run of this interpreter with ``argv``."""
+def child_cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed_run(argv: tuple[str, ...], status: int) -> tuple[float, float]:
+    """Measured wall time and CPU time of one run of this interpreter with ``argv``."""
+    cpu0 = child_cpu_seconds()
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, *argv], capture_output=True, check=False)
     seconds = time.perf_counter() - t0
+    cpu = child_cpu_seconds() - cpu0
     if done.returncode != status:
         raise SystemExit(
             f"{' '.join(argv)}: exit status {done.returncode}, expected {status}\n"
             + done.stderr.decode(errors="replace")
         )
-    return seconds
+    return seconds, cpu
 
 
 def measure(runs: int) -> dict[str, Any]:
     """Median and spread per command, in rounds of one run each."""
-    times: dict[str, list[float]] = {name: [] for name in COMMANDS}
+    times: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
     for argv, status in COMMANDS.values():  # one warm-up each: the file cache
-        wall_seconds(argv, status)
+        timed_run(argv, status)
     for _ in range(runs):
         for name, (argv, status) in COMMANDS.items():
-            times[name].append(wall_seconds(argv, status))
-    floor = statistics.median(times[FLOOR])
+            times[name].append(timed_run(argv, status))
+    floor = statistics.median(wall for wall, _ in times[FLOOR])
     rows = []
-    for name, values in times.items():
-        median = statistics.median(values)
+    for name, runs_of_name in times.items():
+        walls = [wall for wall, _ in runs_of_name]
+        median = statistics.median(walls)
         rows.append(
             {
                 "command": name,
                 "median_seconds": median,
-                "min_seconds": min(values),
-                "max_seconds": max(values),
+                "min_seconds": min(walls),
+                "max_seconds": max(walls),
+                "median_cpu_seconds": statistics.median(cpu for _, cpu in runs_of_name),
                 "ratio_to_python": median / floor,
                 "above_python_seconds": median - floor,
                 "within_target": median <= TARGET_SECONDS,
@@ -83,12 +95,15 @@ def print_table(result: dict[str, Any]) -> None:
         f"{machine['cpus']} CPUs, load average {machine['load_average_at_start'][0]:.2f} "
         f"-> {machine['load_average_at_end'][0]:.2f}"
     )
-    print(f"{'command':<26} {'median s':>9} {'min s':>7} {'max s':>7} {'x python':>9} {'+ s':>7}")
+    print(
+        f"{'command':<26} {'median s':>9} {'min s':>7} {'max s':>7} {'x python':>9} "
+        f"{'+ s':>7} {'cpu s':>7}"
+    )
     for row in result["rows"]:
         print(
             f"{row['command']:<26} {row['median_seconds']:9.3f} {row['min_seconds']:7.3f} "
             f"{row['max_seconds']:7.3f} {row['ratio_to_python']:9.1f} "
-            f"{row['above_python_seconds']:7.3f}"
+            f"{row['above_python_seconds']:7.3f} {row['median_cpu_seconds']:7.3f}"
         )
 
 
