@@ -6,8 +6,16 @@ road images. Stages are pure functions on NumPy arrays; :class:`PipelineConfig`
 joins them and its defaults are the paper's settings.
 """
 
-from qdcnn.config import PipelineConfig
+from typing import TYPE_CHECKING
+
+from qdcnn._lazy import attach
 from qdcnn.errors import InputError, MissingExtraError, ParameterError, QdcnnError
+
+if TYPE_CHECKING:
+    from qdcnn.config import PipelineConfig
+
+# PipelineConfig loads on first use, so ``import qdcnn.cli`` (``qdcnn --help``) needs no NumPy.
+__getattr__ = attach(__name__, {"config": ["PipelineConfig"]})[0]
 
 __all__ = [
     "InputError",

@@ -18,14 +18,6 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskProgressColumn,
-    TextColumn,
-    TimeRemainingColumn,
-)
 
 from qdcnn.errors import QdcnnError
 from qdcnn.runtime.reporting import Advance, Failure, Reporter
@@ -127,6 +119,15 @@ class CliReporter(Reporter):
 
     @contextmanager
     def progress(self, total: int, description: str) -> Iterator[Advance]:
+        from rich.progress import (  # only commands that run load the progress bar
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TaskProgressColumn,
+            TextColumn,
+            TimeRemainingColumn,
+        )
+
         bar = Progress(
             TextColumn("{task.description}"),
             BarColumn(),

@@ -1,4 +1,7 @@
-"""``bench shadows`` and ``bench pipeline``: measured times and ratios against references."""
+"""``bench shadows`` and ``bench pipeline``: measured times and ratios against references.
+
+Each command imports its runner when it runs, so ``qdcnn --help`` loads none of them.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +12,6 @@ from rich.table import Table
 
 from qdcnn.cli._common import JsonOpt, emit, err, fail, out
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.pipeline_bench import bench_pipeline
-from qdcnn.experiments.shadow_bench import bench_shadows
 
 bench_app = typer.Typer(
     help="Benchmarks: measured times and ratios against reference implementations.",
@@ -33,6 +34,8 @@ def bench_shadows_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Per-frame time of UU-dagger (exact, 1024 shots), per-block Aer, IBT, CBS and LBP."""
+    from qdcnn.experiments.shadow_bench import bench_shadows
+
     try:
         result = bench_shadows(
             frames=frames,
@@ -94,6 +97,8 @@ def bench_pipeline_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Frames/s of the whole per-frame pipeline (shadow, lanes, decision) per method."""
+    from qdcnn.experiments.pipeline_bench import bench_pipeline
+
     try:
         result = bench_pipeline(
             data=data, frames=frames, one_core=one_core, cnn=cnn, say=_say(as_json)

@@ -8,9 +8,8 @@ from typing import Annotated
 import typer
 
 from qdcnn.cli._common import JsonOpt, emit, fail, out
-from qdcnn.data.synthetic import PRESETS
+from qdcnn.data.synthetic_presets import PRESETS
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.synth import SynthSpec, run_synth
 
 
 def synth_cmd(
@@ -25,6 +24,8 @@ def synth_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Render a synthetic drive with exact ground truth in the layouts real data use."""
+    from qdcnn.experiments.synth import SynthSpec, run_synth
+
     try:
         result = run_synth(SynthSpec(out_dir, preset, n, seed, width, height, layout, video))
     except QdcnnError as exc:

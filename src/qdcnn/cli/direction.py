@@ -1,10 +1,14 @@
-"""``evaluate``, ``train-direction`` and ``detect-lanes``: lane lines to a direction."""
+"""``evaluate``, ``train-direction`` and ``detect-lanes``: lane lines to a direction.
+
+The runners, the config and the method registry are imported when a command runs, so
+``qdcnn --help`` and option errors load none of them.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
@@ -20,12 +24,13 @@ from qdcnn.cli._common import (
     fail,
     out,
 )
-from qdcnn.config import PipelineConfig
-from qdcnn.direction.methods import TrainingOptions, with_head
 from qdcnn.errors import ParameterError, QdcnnError
-from qdcnn.experiments.detect_lanes import DetectLanesResult, DetectLanesSpec, detect_lanes
-from qdcnn.experiments.evaluate import EvaluationResult, EvaluationSpec, run_evaluation
-from qdcnn.experiments.train_direction import TrainDirectionSpec, train_direction
+
+if TYPE_CHECKING:
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.methods import TrainingOptions
+    from qdcnn.experiments.detect_lanes import DetectLanesResult
+    from qdcnn.experiments.evaluate import EvaluationResult
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
 InnerOpt = Annotated[
@@ -121,6 +126,8 @@ def pipeline_config(
     evidence: LaneEvidence | None = None,
 ) -> PipelineConfig:
     """The config of the lane and label options shared by ``evaluate`` and ``train-direction``."""
+    from qdcnn.config import PipelineConfig
+
     base = PipelineConfig.preset(lanes, seed=seed)
     base = base.with_labels(steering_unit=steering_unit, threshold=label_threshold)
     base = (evidence or LaneEvidence()).apply(base)
@@ -130,6 +137,8 @@ def pipeline_config(
 def training_options(
     epochs: int, weights: Path | None, threads: int | None, progress: bool, context: int = 1
 ) -> TrainingOptions:
+    from qdcnn.direction.methods import TrainingOptions
+
     if threads is not None and threads < 1:
         raise ParameterError("threads", threads, "a positive integer")
     return TrainingOptions(
@@ -170,6 +179,9 @@ def evaluate_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    from qdcnn.direction.methods import with_head
+    from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
+
     try:
         evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
         config = pipeline_config(
@@ -254,6 +266,9 @@ def train_direction_cmd(
 
     Hyperparameters are chosen by the inner contiguous cross-validation evaluate uses.
     """
+    from qdcnn.direction.methods import with_head
+    from qdcnn.experiments.train_direction import TrainDirectionSpec, train_direction
+
     try:
         evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
         config = pipeline_config(
@@ -297,6 +312,8 @@ def detect_lanes_cmd(
     Without --model, the built-in model of --method is used: trained once on 300 frames of
     each synthetic preset (track1, track2, rain), cached, and named in the output.
     """
+    from qdcnn.experiments.detect_lanes import DetectLanesSpec, detect_lanes
+
     try:
         spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)
         result = detect_lanes(spec, CliReporter(as_json))

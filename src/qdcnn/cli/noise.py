@@ -1,9 +1,13 @@
-"""``noise-sweep`` (the paper's Fig. 7) and ``circuit`` (inspect and export a circuit)."""
+"""``noise-sweep`` (the paper's Fig. 7) and ``circuit`` (inspect and export a circuit).
+
+The runners and the config are imported when a command runs, so ``qdcnn --help`` loads
+none of the quantum stack.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
@@ -28,10 +32,11 @@ from qdcnn.cli.direction import (
     UnitOpt,
     training_options,
 )
-from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError, QdcnnError
-from qdcnn.experiments.circuit import CircuitInspection, CircuitSpec, inspect_circuit
-from qdcnn.experiments.noise.runner import NoiseSweepRun, NoiseSweepSpec, run_noise_sweep
+
+if TYPE_CHECKING:
+    from qdcnn.experiments.circuit import CircuitInspection
+    from qdcnn.experiments.noise.runner import NoiseSweepRun
 
 DataOpt = Annotated[
     str | None,
@@ -125,6 +130,9 @@ def noise_sweep_cmd(
     Noise acts after every gate on every qubit the gate touches, as in a Qiskit Aer
     NoiseModel. uu-shadow adds the UU-dagger shadow detector's BER on images with masks.
     """
+    from qdcnn.config import PipelineConfig
+    from qdcnn.experiments.noise.runner import NoiseSweepSpec, run_noise_sweep
+
     try:
         if lanes not in ("udacity", "paper"):
             raise ParameterError(
@@ -199,6 +207,8 @@ def circuit_cmd(
     Probabilities are indexed by basis state with qubit 0 the least significant bit, as in
     Qiskit. With --noise the channel acts after every gate on every qubit it touches.
     """
+    from qdcnn.experiments.circuit import CircuitSpec, inspect_circuit
+
     try:
         spec = CircuitSpec(
             kind, theta_c, theta_x, x, weights, feature_map_reps, noise, shots, backend, seed,

@@ -1,23 +1,23 @@
-"""``reproduce`` and ``demo``: the paper's tables and figures, measured, as one HTML report."""
+"""``reproduce`` and ``demo``: the paper's tables and figures, measured, as one HTML report.
+
+The reproduce runner is imported when a command runs, so ``qdcnn --help`` loads none of it.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CacheOpt, CliReporter, JsonOpt, SeedOpt, emit, err, fail, out
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.reproduce import (
-    ReproduceResult,
-    ReproduceSpec,
-    StageReporter,
-    parse_data_option,
-    run_reproduce,
-)
+from qdcnn.runtime.reporting import StageReporter
+
+if TYPE_CHECKING:
+    from qdcnn.experiments.reproduce import ReproduceResult, ReproduceSpec
 
 OutOpt = Annotated[Path, typer.Option("--out", help="Folder of index.html, report.json, figures.")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Overwrite an existing report folder.")]
@@ -43,6 +43,8 @@ class _StageLines(CliReporter, StageReporter):
 
 
 def _finish(spec: ReproduceSpec, as_json: bool) -> None:
+    from qdcnn.experiments.reproduce import run_reproduce
+
     try:
         result = run_reproduce(spec, _StageLines(as_json))
     except QdcnnError as exc:
@@ -110,6 +112,8 @@ def reproduce_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Every table and figure of the paper next to the same thing measured on your data."""
+    from qdcnn.experiments.reproduce import ReproduceSpec, parse_data_option
+
     try:
         spec = ReproduceSpec(
             out_dir,
@@ -143,6 +147,8 @@ def demo_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """`reproduce --quick` on the built-in synthetic presets: the whole paper in minutes."""
+    from qdcnn.experiments.reproduce import ReproduceSpec
+
     try:
         spec = ReproduceSpec(out_dir, quick=quick, force=force, resume=resume, seed=seed)
     except QdcnnError as exc:

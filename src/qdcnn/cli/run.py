@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.run import RunSpec, run
-from qdcnn.runtime.engine import RunOptions, RunResult
+
+if TYPE_CHECKING:
+    from qdcnn.runtime.engine import RunResult
 
 
 def run_cmd(
@@ -40,6 +41,9 @@ def run_cmd(
     Writes DIR/<name>/frames.csv, timings.csv (measured ms), overlay.mp4 and DIR/summary.json.
     A re-run with the same arguments skips finished chunks (--force redoes them).
     """
+    from qdcnn.experiments.run import RunSpec, run
+    from qdcnn.runtime.engine import RunOptions
+
     try:
         options = RunOptions(
             chunk_frames=chunk, smooth=smooth, overlay=video, force=force, wait=wait

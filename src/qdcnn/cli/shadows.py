@@ -1,26 +1,23 @@
-"""``detect-shadows``, ``score-shadows`` and ``train-shadows``."""
+"""``detect-shadows``, ``score-shadows`` and ``train-shadows``.
+
+The shadow runners and the config are imported when a command runs, so ``qdcnn --help``
+loads none of them.
+"""
 
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.table import Table
 
 from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out, report_error
-from qdcnn.config import ShadowConfig
 from qdcnn.errors import QdcnnError
-from qdcnn.experiments.shadow_batch import (
-    ShadowDetectionResult,
-    ShadowDetectionSpec,
-    ShadowTrainingSpec,
-    median_seconds,
-    run_shadow_detection,
-    score_folders,
-    train_shadows,
-)
+
+if TYPE_CHECKING:
+    from qdcnn.experiments.shadow_batch import ShadowDetectionResult
 
 PathsArg = Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")]
 MaskOutOpt = Annotated[Path, typer.Option("--out", help="Folder for <stem>_mask.png files.")]
@@ -58,6 +55,9 @@ def detect_shadows_cmd(
     Resumable: a re-run with the same settings skips images whose mask is recorded as
     finished in the folder's manifest (--force redoes them).
     """
+    from qdcnn.config import ShadowConfig
+    from qdcnn.experiments.shadow_batch import ShadowDetectionSpec, run_shadow_detection
+
     table = Table("file", "shadow %", "ms", title=f"shadow detection: {method}")
     try:
         cfg = ShadowConfig(shots=None if exact else shots, calibration_classes=calibration_classes)
@@ -85,6 +85,8 @@ def _mask_row(table: Table, record: Any) -> None:
 
 
 def _detection_line(result: ShadowDetectionResult) -> str:
+    from qdcnn.experiments.shadow_batch import median_seconds
+
     med = median_seconds(result.records)
     timing = f"; median {1e3 * med:.2f} ms per image (measured)" if med is not None else ""
     return (
@@ -99,6 +101,8 @@ def score_shadows_cmd(
     as_json: JsonOpt = False,
 ) -> None:
     """Balanced error rate of predicted masks against ground truth (counts summed over the set)."""
+    from qdcnn.experiments.shadow_batch import score_folders
+
     try:
         report = score_folders(pred, gt)
     except QdcnnError as exc:
@@ -138,6 +142,8 @@ def train_shadows_cmd(
     features or centroids train the multi-centroid model: one centroid and threshold
     per feature and component.
     """
+    from qdcnn.experiments.shadow_batch import ShadowTrainingSpec, train_shadows
+
     names = tuple(f.strip() for f in features.split(",") if f.strip())
     try:
         spec = ShadowTrainingSpec(data, out_file, names, centroids, search_threshold, seed)

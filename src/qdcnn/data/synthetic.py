@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.data.labels import LEFT, RIGHT, STRAIGHT
+from qdcnn.data.synthetic_presets import PRESETS
 from qdcnn.data.synthetic_render import render
 from qdcnn.data.synthetic_world import (
     ROUTE_STEP,
@@ -45,7 +46,6 @@ from qdcnn.data.synthetic_world import (
 )
 from qdcnn.errors import ParameterError
 
-PRESETS: tuple[str, ...] = ("track1", "track2", "rain", "dashcam")
 STEERING_PER_CURVATURE = 20.0  # steering per unit of road curvature (1/m): radius 20 m -> 1.0
 STRAIGHT_MAX_STEERING = 0.02  # |steering| of straight scenes stays at or below this
 LABEL_THRESHOLD = 0.05  # |steering| below this is "straight" (LabelConfig.threshold)

@@ -17,7 +17,7 @@ from typing import Any
 
 from qdcnn.batch import Failure
 
-__all__ = ["Collector", "Failure", "Reporter"]
+__all__ = ["Collector", "Failure", "Reporter", "StageReporter"]
 
 Advance = Callable[..., None]
 
@@ -38,6 +38,13 @@ class Reporter:
     def progress(self, total: int, description: str) -> Iterator[Advance]:
         """Context around a loop of ``total`` steps; call the yielded function per step."""
         yield _nothing
+
+
+class StageReporter(Reporter):
+    """A reporter that is also told when each stage of a long run begins."""
+
+    def stage(self, index: int, total: int, title: str) -> None:
+        """Stage ``index`` (1-based) of ``total`` begins."""
 
 
 def _nothing(*_: object) -> None:

@@ -21,7 +21,7 @@ from qdcnn.direction.methods import GROUPINGS
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.reproduce.model import Section
 from qdcnn.experiments.reproduce.spec import DatasetEntry, Profile, ReproduceSpec
-from qdcnn.runtime.reporting import Reporter
+from qdcnn.runtime.reporting import Reporter, StageReporter
 
 __all__ = ["DatasetUnavailable", "RunContext", "StageReporter", "named_options_config"]
 
@@ -36,13 +36,6 @@ def named_options_config(config: PipelineConfig) -> PipelineConfig:
     (``qdcnn evaluate --features road-centre --edges rgb --no-shadow-removal``).
     """
     return config.with_lane_options(features="road-centre", edges="rgb", shadow_removal=False)
-
-
-class StageReporter(Reporter):
-    """A reporter that is also told when each stage of a long run begins."""
-
-    def stage(self, index: int, total: int, title: str) -> None:
-        """Stage ``index`` (1-based) of ``total`` begins."""
 
 
 class DatasetUnavailable(QdcnnError):
