@@ -11,6 +11,10 @@ import json
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.base  # the base install's CLI must start fast too
+
 #: Libraries only a running command may load (scikit-image would bring SciPy).
 HEAVY = (
     "sklearn",
