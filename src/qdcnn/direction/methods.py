@@ -27,6 +27,7 @@ from sklearn.base import BaseEstimator
 
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError
+from qdcnn.models.networks import HEADS, HYBRID_NETWORKS, hybrid_of
 
 __all__ = [
     "GROUPINGS",
@@ -280,15 +281,6 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
     return build
 
 
-#: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
-HYBRIDS: dict[str, str] = {
-    "qdcnn-head": "PilotNet trunk, then a 4-qubit variational quantum head",
-    "qdcnn-uuconv": "UU-dagger fidelity convolution, PilotNet trunk, quantum head",
-    "qdcnn-quanv": "quanvolution (fixed random 4-qubit circuits), PilotNet trunk, quantum head",
-}
-TWIN_SUFFIX = "-classical"
-
-
 def with_head(names: str, head: str) -> str:
     """``names`` (a comma list) with the hybrids given the ``head`` asked for.
 
@@ -303,17 +295,17 @@ def with_head(names: str, head: str) -> str:
     >>> with_head("qdcnn-head-classical", "quantum")
     'qdcnn-head-classical'
     """
-    if head not in ("quantum", "classical", "both"):
+    if head not in (*HEADS, "both"):
         raise ParameterError("head", head, "'quantum', 'classical' or 'both'")
     out: list[str] = []
     for name in (n.strip() for n in names.split(",") if n.strip()):
-        base = name.removesuffix(TWIN_SUFFIX)
-        if head == "quantum" or base not in HYBRIDS:
+        hybrid = hybrid_of(name)
+        if head == "quantum" or hybrid is None:
             out.append(name)
             continue
         if head == "both":
-            out.append(base)
-        out.append(base + TWIN_SUFFIX)
+            out.append(hybrid.name)
+        out.append(hybrid.twin)
     return ",".join(dict.fromkeys(out))
 
 
@@ -344,26 +336,27 @@ register(
         summary="PilotNet CNN (Bojarski et al. 2016), classical baseline",
     )
 )
-for _name, _what in HYBRIDS.items():
+for _hybrid in HYBRID_NETWORKS:
     register(
         DirectionMethod(
-            _name,
+            _hybrid.name,
             "frames",
-            _cnn_builder(_name, {"head": "quantum"}),
+            _cnn_builder(_hybrid.name, {"head": "quantum"}),
             "hybrid",
             needs_torch=True,
             quantum=True,
-            summary=_what,
+            summary=_hybrid.summary,
         )
     )
     register(
         DirectionMethod(
-            _name + TWIN_SUFFIX,
+            _hybrid.twin,
             "frames",
-            _cnn_builder(_name, {"head": "classical"}),
+            _cnn_builder(_hybrid.name, {"head": "classical"}),
             "hybrid-twin",
             needs_torch=True,
-            summary=f"{_what}: its classical twin (an MLP head of the same parameter count)",
+            summary=f"{_hybrid.summary}: its classical twin (an MLP head of the same parameter "
+            "count)",
         )
     )
 register(

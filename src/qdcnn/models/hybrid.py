@@ -28,6 +28,7 @@ from typing import Any
 from qdcnn._optional import require
 from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
+from qdcnn.models.networks import HEADS, HYBRID_NETWORKS
 from qdcnn.models.pilotnet import PilotNet
 from qdcnn.models.quantum_layers import (
     READOUT_GAIN,
@@ -42,7 +43,6 @@ require("torch", "the hybrid quantum networks")
 import torch  # noqa: E402
 from torch import nn  # noqa: E402
 
-HEADS = ("quantum", "classical")
 #: PilotNet's input size (rows, columns)
 INPUT_SIZE = (66, 200)
 
@@ -216,10 +216,10 @@ def qdcnn_quanv(
     return HybridNet(normalised, trunk, make_head(head, features, **head_options))
 
 
+#: The builder of each hybrid network, by name (the table is
+#: :data:`qdcnn.models.networks.HYBRID_NETWORKS`).
 HYBRIDS: dict[str, Callable[..., HybridNet]] = {
-    "qdcnn-head": qdcnn_head,
-    "qdcnn-uuconv": qdcnn_uuconv,
-    "qdcnn-quanv": qdcnn_quanv,
+    h.name: globals()[h.builder] for h in HYBRID_NETWORKS
 }
 
 

@@ -33,7 +33,13 @@ from qdcnn._optional import require
 from qdcnn._validation import check_bool, check_choice, check_int
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.models.networks import NETWORKS, NetworkEntry, input_spec, network_entry
+from qdcnn.models.networks import (
+    NETWORKS,
+    NetworkEntry,
+    input_spec,
+    network_entry,
+    network_label,
+)
 from qdcnn.models.samples import (
     N_CLASSES,
     ExtraView,
@@ -402,8 +408,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     def _label(self) -> str:
         """The network's name on the progress bar; a hybrid's classical twin says so."""
-        twin = self._network_kw().get("head") == "classical"
-        return f"{self.arch}-classical" if twin else self.arch
+        return network_label(self.arch, self._network_kw().get("head"))
 
     def _threads(self) -> int:
         from qdcnn.models.trainer import default_threads
