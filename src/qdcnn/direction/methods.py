@@ -28,6 +28,7 @@ from sklearn.base import BaseEstimator
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError
 from qdcnn.models.networks import HEADS, HYBRID_NETWORKS, hybrid_of
+from qdcnn.vision.grouping import GROUPINGS
 
 __all__ = [
     "GROUPINGS",
@@ -40,9 +41,6 @@ __all__ = [
     "unregister",
     "with_head",
 ]
-
-#: Lane groupings of the paper (Sec. II-A-3), in the paper's order.
-GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
 
 Grid = dict[str, list[Any]]
 
