@@ -171,6 +171,25 @@ def spec_from_meta(value: object, path: str | os.PathLike[str]) -> InputSpec:
     return InputSpec((float(crop[0]), float(crop[1])), size[0], size[1], colour)  # type: ignore[index, arg-type]
 
 
+def history_from_meta(
+    meta: Mapping[str, Any], path: str | os.PathLike[str]
+) -> tuple[list[dict[str, Any]], int]:
+    """The training history and best epoch a header stores, checked.
+
+    Raises
+    ------
+    InputError
+        ``history`` is not a list of epoch records, or ``best_epoch`` not one of its epochs.
+    """
+    history = meta.get("history", [])
+    if not isinstance(history, list) or not all(isinstance(h, dict) for h in history):
+        raise InputError(path, "header field 'history' is not a list of epoch records")
+    best = meta.get("best_epoch", 0)
+    if isinstance(best, bool) or not isinstance(best, int) or not 0 <= best <= len(history):
+        raise InputError(path, f"header best_epoch {best!r} is not an epoch of its history")
+    return history, best
+
+
 # ---------------------------------------------------------------- checkpoints
 def save_checkpoint(
     path: str | os.PathLike[str],
