@@ -42,7 +42,7 @@ __all__ = [
     "with_head",
 ]
 
-Grid = dict[str, list[Any]]
+_Grid = dict[str, list[Any]]
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class TrainingOptions:
         check_int("context", self.context, 1, 64)
 
 
-Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, Grid]]
+_Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, _Grid]]
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,7 @@ class DirectionMethod:
 
     name: str
     inputs: Literal["lanes", "frames"]
-    build: Builder
+    build: _Builder
     kind: str
     grouping: str | None = None
     needs_torch: bool = False
@@ -132,7 +132,7 @@ class DirectionMethod:
 
     def estimator(
         self, config: PipelineConfig, options: TrainingOptions | None = None
-    ) -> tuple[BaseEstimator, Grid]:
+    ) -> tuple[BaseEstimator, _Grid]:
         """A fresh estimator of this method and its grid (see :attr:`build`)."""
         return self.build(config, options or TrainingOptions())
 
@@ -218,7 +218,7 @@ def _lane_columns(config: PipelineConfig) -> tuple[int, int] | None:
     return mode_columns(grouping.features, grouping.extra_features)
 
 
-def build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
     """The paper's UU-dagger rule on the two lane inputs; the grid is the angle map."""
     from qdcnn.quantum.direction import UUDirectionClassifier
 
@@ -231,7 +231,7 @@ def build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEsti
     return estimator, {"angle_map": ["arctan", "minmax"]}
 
 
-def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
     """The paper's 2-qubit VQC; the grid is the interpret map.
 
     The named feature modes (not the paper's) add the angle span (1 or 0.5) and the feature
@@ -252,15 +252,15 @@ def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEst
         feature_columns=_lane_columns(config),
         restarts=1 if paper else 3,
     )
-    grid: Grid = {"interpret": ["min2", "mod3"]}
+    grid: _Grid = {"interpret": ["min2", "mod3"]}
     if not paper:
         grid["angle_span"] = [1.0, 0.5]
         grid["feature_map_reps"] = sorted({config.vqc.feature_map_reps, 1})
     return estimator, grid
 
 
-def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> Builder:
-    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> _Builder:
+    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
         from qdcnn.models.training import CNNDirectionClassifier
 
         estimator = CNNDirectionClassifier(
@@ -307,9 +307,9 @@ def with_head(names: str, head: str) -> str:
     return ",".join(dict.fromkeys(out))
 
 
-_CLASSIFIERS: dict[str, tuple[Builder, str]] = {
-    "uu": (build_uu, "the paper's UU-dagger rule on two lane inputs"),
-    "vqc": (build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
+_CLASSIFIERS: dict[str, tuple[_Builder, str]] = {
+    "uu": (_build_uu, "the paper's UU-dagger rule on two lane inputs"),
+    "vqc": (_build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
 }
 for _kind, (_build, _what) in _CLASSIFIERS.items():
     for _grouping in GROUPINGS:

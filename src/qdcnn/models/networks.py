@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from torch import nn
 
 #: ``factory(in_channels, num_classes, **kw)`` returning a freshly initialised network.
-NetworkFactory = Callable[..., "nn.Module"]
+_NetworkFactory = Callable[..., "nn.Module"]
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class NetworkEntry:
         Smallest training batch (2 for networks with BatchNorm).
     """
 
-    factory: NetworkFactory
+    factory: _NetworkFactory
     input_spec: InputSpec
     weights_name: str
     weights_skip: tuple[str, ...] = ()
@@ -78,7 +78,7 @@ def _resnet50(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
 #: The heads a hybrid network takes: its quantum head, or the classical twin of equal size.
 HEADS: tuple[str, str] = ("quantum", "classical")
 #: A hybrid's classical twin is named after it with this suffix (method, progress label).
-TWIN_SUFFIX = "-classical"
+_TWIN_SUFFIX = "-classical"
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ class HybridNetwork:
     @property
     def twin(self) -> str:
         """The name of its classical twin."""
-        return self.name + TWIN_SUFFIX
+        return self.name + _TWIN_SUFFIX
 
 
 #: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
@@ -134,16 +134,16 @@ HYBRID_NETWORKS: tuple[HybridNetwork, ...] = (
 
 def hybrid_of(name: str) -> HybridNetwork | None:
     """The hybrid that ``name`` (a hybrid's name or its twin's) belongs to, else ``None``."""
-    base = name.removesuffix(TWIN_SUFFIX)
+    base = name.removesuffix(_TWIN_SUFFIX)
     return next((h for h in HYBRID_NETWORKS if h.name == base), None)
 
 
 def network_label(arch: str, head: object = None) -> str:
     """The name a network trained with ``head`` goes by: a classical twin says so."""
-    return arch + TWIN_SUFFIX if head == "classical" else arch
+    return arch + _TWIN_SUFFIX if head == "classical" else arch
 
 
-def _hybrid(name: str) -> NetworkFactory:
+def _hybrid(name: str) -> _NetworkFactory:
     def build(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
         from qdcnn.models.hybrid import build_hybrid
 

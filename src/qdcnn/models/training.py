@@ -64,11 +64,9 @@ __all__ = [
     "split_train_val",
 ]
 
-#: The built-in networks; ``arch`` takes any name registered in :data:`NETWORKS`.
-Arch = Literal["pilotnet", "resnet50"]
 #: Networks a classifier can train (the registry's names when this module was imported).
 ARCHS: tuple[str, ...] = tuple(NETWORKS)
-MAX_CONTEXT = 64
+_MAX_CONTEXT = 64
 
 
 def _torch(purpose: str) -> Any:
@@ -397,7 +395,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         if self.weights is not None and not isinstance(self.weights, str | os.PathLike):
             raise ParameterError("weights", self.weights, "a weights file path or None")
         _check_crop(self.crop)
-        check_int("context", self.context, 1, MAX_CONTEXT)
+        check_int("context", self.context, 1, _MAX_CONTEXT)
         _check_network_params(self.network_params)
         _as_noise("noise", self.noise)
         _as_noise("train_noise", self.train_noise)
