@@ -80,7 +80,8 @@ from qdcnn._threads import single_thread
 from qdcnn.config import GroupingConfig
 from qdcnn.errors import InputError, ParameterError
 
-METHODS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
+#: The lane groupings of the paper (Sec. II-A-3), in the paper's order.
+GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
 EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
     # x where each line crosses the bottom row, relative to the width (x / (W - 1))
     "intercepts": ("intercept_left", "intercept_right"),
@@ -291,7 +292,7 @@ def group_segments(
     >>> f.status, np.round(f.features, 3).tolist()
     ('ok', [-0.667, 0.667])
     """
-    if method not in METHODS:
+    if method not in GROUPINGS:
         raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
     names = feature_names(extra_features)
     seg, h, w = _checked_segments(segments, shape, merge_tolerance)
