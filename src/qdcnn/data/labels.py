@@ -28,11 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+# The class names and indices live in qdcnn.classes; re-exported here for callers.
+from qdcnn.classes import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.config import LabelConfig
 from qdcnn.errors import InputError, ParameterError
-
-DIRECTIONS: tuple[str, str, str] = ("left", "straight", "right")
-LEFT, STRAIGHT, RIGHT = 0, 1, 2
 
 _DEFAULTS = LabelConfig()
 

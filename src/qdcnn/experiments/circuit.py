@@ -105,7 +105,7 @@ class CircuitSpec:
     feature_map_reps : int
         ``vqc``: repetitions of the ZZ feature map.
     noise : str or None
-        ``CHANNEL:P[,readout:E]`` (:func:`qdcnn.quantum.noise.parse_noise`).
+        ``CHANNEL:P[,readout:E]`` (:func:`qdcnn.quantum.noise_text.parse_noise`).
     shots : int or None
         Shot estimates (default: exact probabilities).
     backend : {"numpy", "aer"}
@@ -151,7 +151,7 @@ class CircuitSpec:
 
     def noise_spec(self) -> Any:
         """The parsed noise, or ``None``."""
-        from qdcnn.quantum.noise import parse_noise
+        from qdcnn.quantum.noise_text import parse_noise
 
         return None if self.noise is None else parse_noise(self.noise)
 

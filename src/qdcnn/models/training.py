@@ -158,7 +158,7 @@ def _as_noise(name: str, value: Any) -> Any:
     if value is None or (hasattr(value, "label") and hasattr(value, "is_ideal")):
         return value
     if isinstance(value, str):
-        from qdcnn.quantum.noise import parse_noise
+        from qdcnn.quantum.noise_text import parse_noise
 
         return parse_noise(value)
     raise ParameterError(name, value, "None, a noise model or its text (depolarizing:0.1)")

@@ -264,38 +264,3 @@ class NoiseSpec:
         if self.readout:
             parts.append(f"readout:{self.readout:g}")
         return ",".join(parts) or "ideal"
-
-
-def parse_noise(text: str) -> NoiseSpec:
-    """Parse ``"CHANNEL:P"`` (optionally ``",readout:E"``) into a :class:`NoiseSpec`.
-
-    ``"device:NAME"`` (options ``,layout:0-1-2``, ``,route:swap``,
-    ``,readout:asymmetric|symmetric|none``) gives the calibrated noise of an offline IBM
-    fake backend, a :class:`qdcnn.quantum.device.DeviceNoise` (a ``NoiseSpec`` subclass,
-    accepted wherever a ``NoiseSpec`` is); see :func:`qdcnn.quantum.device.parse_device_noise`.
-
-    Examples
-    --------
-    >>> parse_noise("bit-flip:0.1")
-    NoiseSpec(channel='bit-flip', p=0.1, readout=0.0)
-    """
-    if any(part.strip().partition(":")[0] == "device" for part in text.split(",")):
-        from qdcnn.quantum.device import parse_device_noise
-
-        return parse_device_noise(text)
-    channel: str | None = None
-    p = 0.0
-    readout = 0.0
-    for part in filter(None, (t.strip() for t in text.split(","))):
-        name, sep, value = part.partition(":")
-        if not sep:
-            raise ParameterError("noise", text, "CHANNEL:P, e.g. depolarizing:0.1")
-        try:
-            v = float(value)
-        except ValueError:
-            raise ParameterError("noise", text, f"a number after '{name}:'") from None
-        if name == "readout":
-            readout = v
-        else:
-            channel, p = check_channel(name), v
-    return NoiseSpec(channel, p, readout)
