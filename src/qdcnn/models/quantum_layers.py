@@ -117,7 +117,7 @@ class QuantumHead(nn.Module):
         self._shot_rng = np.random.default_rng(shot_seed)
         self.set_noise(noise)
 
-    def set_noise(self, noise: Any) -> None:
+    def set_noise(self, noise: NoiseSpec | None) -> None:
         """Run the circuit under ``noise`` from now on (``None``: noise-free).
 
         Channel noise (:class:`~qdcnn.quantum.noise.NoiseSpec`) runs on the PyTorch

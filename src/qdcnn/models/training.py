@@ -41,6 +41,7 @@ from qdcnn.models.samples import (
     context_windows,
     split_train_val,
 )
+from qdcnn.quantum.noise import GateNoise, is_noise
 
 if TYPE_CHECKING:
     import torch
@@ -146,16 +147,16 @@ def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
             return str(v)
         if isinstance(v, tuple):
             return list(v)
-        if hasattr(v, "label") and hasattr(v, "is_ideal"):  # a noise model: by its label
+        if is_noise(v):  # a noise model: by its label
             return None if v.is_ideal else v.label()
         return v
 
     return {k: plain(v) for k, v in params.items()}
 
 
-def _as_noise(name: str, value: Any) -> Any:
+def _as_noise(name: str, value: object) -> GateNoise | None:
     """``value`` as a noise model: ``None``, a noise object, or its text (parsed)."""
-    if value is None or (hasattr(value, "label") and hasattr(value, "is_ideal")):
+    if value is None or is_noise(value):
         return value
     if isinstance(value, str):
         from qdcnn.quantum.noise_text import parse_noise
@@ -164,7 +165,7 @@ def _as_noise(name: str, value: Any) -> Any:
     raise ParameterError(name, value, "None, a noise model or its text (depolarizing:0.1)")
 
 
-def _set_quantum_noise(network: Any, noise: Any, name: str) -> None:
+def _set_quantum_noise(network: Any, noise: GateNoise | None, name: str) -> None:
     """Put ``noise`` on every quantum layer of ``network``; refuse noise without one."""
     layers = [m for m in network.modules() if hasattr(m, "set_noise")]
     if noise is not None and not layers:
@@ -331,8 +332,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         crop: tuple[float, float] | None = None,
         context: int = 1,
         network_params: Mapping[str, Any] | None = None,
-        noise: Any = None,
-        train_noise: Any = None,
+        noise: GateNoise | str | None = None,
+        train_noise: GateNoise | str | None = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -495,7 +496,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     # -------------------------------------------------------------- inference
     def predict_proba(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.float64]:
         """Class probabilities ``(N, 3)`` for left, straight, right.
 
@@ -541,7 +542,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         return normalise(stacked.reshape(b, k * c, h, w).to(self.device_), self.input_spec_)
 
     def predict(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
         :meth:`predict_proba`)."""

@@ -24,6 +24,7 @@ from qdcnn._optional import require
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates as np_gates
 from qdcnn.quantum.circuits import CircuitTemplate
+from qdcnn.quantum.noise import GateNoise
 from qdcnn.quantum.torchsim import pauli
 from qdcnn.quantum.torchsim.gates import complex_dtype, gate_matrices
 from qdcnn.quantum.torchsim.measure import (
@@ -123,7 +124,7 @@ class TorchCircuit:
     Everything is differentiable with autograd, noise channels included.
     """
 
-    def __init__(self, template: CircuitTemplate, noise: Any = None) -> None:
+    def __init__(self, template: CircuitTemplate, noise: GateNoise | None = None) -> None:
         self.template = template
         self.noise = noise
         self.program: Program = compile_template(template, noise)
