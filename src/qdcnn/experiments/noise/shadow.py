@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
-from qdcnn._validation import check_int, check_probability
+from qdcnn._validation import check_int
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise._rng import point_rng
@@ -158,8 +158,7 @@ def shadow_sweep(
         The noiseless model.
     """
     cfg = replace(config or ShadowConfig(), shots=shots)
-    check_grid(channels, strengths)
-    check_probability("readout", readout)
+    check_grid(channels, strengths, readout)
     candidates = parse_shadow_thresholds(thresholds)
     if not test_images or len(test_images) != len(test_masks):
         raise ParameterError(
@@ -176,21 +175,32 @@ def shadow_sweep(
                     t = _noisy_threshold(model, train_images, train_masks, cfg, noise, candidates)
                     used = replace(model, threshold=t)
                 gen = point_rng(seed, SHADOW_METHOD, channel, p)
-                scores, counts = _score_detections(used, test_images, test_masks, cfg, noise, gen)
-                rows.append(
-                    SweepRow(
-                        SHADOW_METHOD,
-                        None,
-                        channel,
-                        float(p),
-                        (counts.tp + counts.tn) / counts.total,
-                        len(test_images),
-                        ber=scores.ber,
-                        shadow_error=scores.shadow_error,
-                        nonshadow_error=scores.nonshadow_error,
-                        threshold=used.threshold,
-                    )
-                )
+                rows.append(_shadow_row(used, test_images, test_masks, cfg, noise, gen))
                 if on_step:
                     on_step()
     return rows, model
+
+
+def _shadow_row(
+    model: ShadowModel,
+    images: Sequence[NDArray[np.uint8]],
+    masks: Sequence[NDArray[np.bool_]],
+    cfg: ShadowConfig,
+    noise: NoiseSpec,
+    rng: np.random.Generator,
+) -> SweepRow:
+    """The sweep row of ``model`` on the test images under ``noise`` (one (channel, p))."""
+    assert noise.channel is not None
+    scores, counts = _score_detections(model, images, masks, cfg, noise, rng)
+    return SweepRow(
+        SHADOW_METHOD,
+        None,
+        noise.channel,
+        noise.p,
+        (counts.tp + counts.tn) / counts.total,
+        len(images),
+        ber=scores.ber,
+        shadow_error=scores.shadow_error,
+        nonshadow_error=scores.nonshadow_error,
+        threshold=model.threshold,
+    )

@@ -54,7 +54,8 @@ def readout_confusions(
 
     Read through the noise protocol (:class:`qdcnn.quantum.noise.GateNoise`).
     """
-    matrices = None if noise is None else noise.readout_matrices(num_qubits)
+    hook = getattr(noise, "readout_matrices", None)  # a noise without readout may leave it out
+    matrices = None if hook is None else hook(num_qubits)
     return None if matrices is None else [np.asarray(m, dtype=np.float64) for m in matrices]
 
 
