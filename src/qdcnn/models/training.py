@@ -30,7 +30,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
-from qdcnn._validation import check_bool, check_choice, check_int
+from qdcnn._validation import check_bool, check_choice, check_input_shape, check_int, has_shape
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.models.networks import NETWORKS, NetworkEntry, input_spec, network_entry
@@ -82,7 +82,7 @@ def _as_images(
             raise InputError(
                 source, "expected a uint8 array (N, H, W, 3) or a list of equal-size frames"
             ) from None
-    if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[-1] != 3 or 0 in arr.shape:
+    if arr.dtype != np.uint8 or not has_shape(arr, "N,H,W,3") or 0 in arr.shape:
         raise InputError(
             source,
             f"expected a non-empty uint8 RGB array of shape (N, H, W, 3), "
@@ -93,8 +93,7 @@ def _as_images(
 
 def _as_labels(labels: ArrayLike, n: int, source: str = "labels") -> NDArray[np.int64]:
     y = np.asarray(labels)
-    if y.ndim != 1 or len(y) != n:
-        raise InputError(source, f"expected {n} labels (one per image), got shape {y.shape}")
+    check_input_shape(source, y, str(n), f"{n} labels (one per image)")
     if y.dtype.kind == "f" and np.all(np.isfinite(y)) and np.all(y == np.round(y)):
         y = y.astype(np.int64)
     if y.dtype.kind not in "iu" or np.any((y < 0) | (y >= N_CLASSES)):

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from sklearn.utils.validation import check_is_fitted
 
+from qdcnn._validation import has_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.noise import is_noise
 
@@ -61,7 +62,7 @@ def check_fitted_models(
             )
         check_is_fitted(estimator)
         idx = np.asarray(rows)
-        if idx.ndim != 1 or not (idx.size == 0 or np.issubdtype(idx.dtype, np.integer)):
+        if not has_shape(idx, "N") or not (idx.size == 0 or np.issubdtype(idx.dtype, np.integer)):
             raise ParameterError(f"models[{i}] rows", f"<{idx.dtype} {idx.shape}>", "row indices")
         out.append((idx.astype(np.intp), estimator))
     return out

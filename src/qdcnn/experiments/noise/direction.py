@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from sklearn.base import clone
 
 from qdcnn._threads import single_thread
-from qdcnn._validation import check_optional_shots
+from qdcnn._validation import check_optional_shots, has_shape
 from qdcnn.config import PipelineConfig
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method, method_names
 from qdcnn.direction.protocol import (
@@ -377,7 +377,7 @@ def _target_inputs(
             raise ParameterError("features", sorted(features), f"inputs '{t.inputs}' for {t.label}")
         inputs[t.inputs] = np.asarray(features[t.inputs])
     for key, X in inputs.items():
-        if X.ndim < 2 or X.shape[0] != n_labels:
+        if not has_shape(X, f"{n_labels},F,*"):
             raise InputError(
                 f"features[{key}]", f"shape {X.shape} does not match {n_labels} labels"
             )

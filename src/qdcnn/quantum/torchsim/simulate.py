@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from qdcnn._optional import require
+from qdcnn._validation import check_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates as np_gates
 from qdcnn.quantum.circuits import CircuitTemplate
@@ -88,8 +89,7 @@ def _check_params(
             continue
         if not isinstance(t, torch.Tensor) or t.dtype not in (torch.float32, torch.float64):
             raise ParameterError(label, type(t).__name__, "a float32 or float64 torch tensor")
-        if t.ndim not in (1, 2) or t.shape[-1] != size:
-            raise ParameterError(label, f"shape {tuple(t.shape)}", f"({size},) or (B, {size})")
+        check_shape(label, t, f"{size}|B,{size}", f"({size},) or (B, {size})")
     if not given:
         raise ParameterError("inputs/weights", None, "at least one tensor (for dtype and device)")
     ref = given[0]
