@@ -34,7 +34,7 @@ from qdcnn.experiments.noise.options import (
 from qdcnn.experiments.noise.results import SweepRow
 from qdcnn.quantum.noise import PAPER_CHANNELS, NoiseSpec
 from qdcnn.quantum.uu_dagger import fidelity, value_to_angle
-from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
+from qdcnn.vision.metrics import ConfusionCounts, confusion_counts, shadow_scores
 from qdcnn.vision.shadow_training import block_shadow_fraction, train_shadow_model
 from qdcnn.vision.shadows import (
     ShadowModel,
@@ -90,22 +90,6 @@ def _noisy_threshold(
     scores = fidelity(value_to_angle(model.centroid), value_to_angle(v), shots=None, noise=noise)
     bers = [shadow_scores(confusion_counts((scores >= t)[None], gt[None])).ber for t in thresholds]
     return float(thresholds[int(np.argmin(bers))])
-
-
-def _score_detections(
-    model: ShadowModel,
-    images: Sequence[NDArray[np.uint8]],
-    masks: Sequence[NDArray[np.bool_]],
-    cfg: ShadowConfig,
-    noise: NoiseSpec,
-    rng: np.random.Generator,
-) -> tuple[ShadowScores, ConfusionCounts]:
-    """Detect shadows in every image under ``noise``; scores of the pixel counts summed."""
-    counts = ConfusionCounts(0, 0, 0, 0)
-    for i, (image, mask) in enumerate(zip(images, masks, strict=True)):
-        det = detect_shadows_uu(image, cfg, model=model, noise=noise, rng=rng)
-        counts = counts + confusion_counts(det.mask, mask, source=f"test image {i}")
-    return shadow_scores(counts), counts
 
 
 def shadow_sweep(
@@ -189,9 +173,14 @@ def _shadow_row(
     noise: NoiseSpec,
     rng: np.random.Generator,
 ) -> SweepRow:
-    """The sweep row of ``model`` on the test images under ``noise`` (one (channel, p))."""
+    """Detect shadows in every test image under ``noise`` (one (channel, p)); the sweep row
+    of the pixel counts summed."""
     assert noise.channel is not None
-    scores, counts = _score_detections(model, images, masks, cfg, noise, rng)
+    counts = ConfusionCounts(0, 0, 0, 0)
+    for i, (image, mask) in enumerate(zip(images, masks, strict=True)):
+        det = detect_shadows_uu(image, cfg, model=model, noise=noise, rng=rng)
+        counts = counts + confusion_counts(det.mask, mask, source=f"test image {i}")
+    scores = shadow_scores(counts)
     return SweepRow(
         SHADOW_METHOD,
         None,
