@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._fileio import atomic_write_bytes
+from qdcnn._validation import has_shape
 from qdcnn.errors import InputError
 
 IMAGE_SUFFIXES = frozenset(
@@ -200,7 +201,7 @@ def _decode(path: Path) -> NDArray[np.generic]:
         raise InputError(shown, f"{_UNREADABLE}: decoder error ({reason})") from None
     if img is None:
         raise InputError(shown, _UNREADABLE)
-    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
+    if not has_shape(img, "H,W|H,W,C") or img.shape[0] == 0 or img.shape[1] == 0:
         raise InputError(shown, f"image has an unusable shape {img.shape}")
     if img.shape[0] * img.shape[1] > MAX_PIXELS:
         raise InputError(

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+# The class names and indices live in qdcnn.classes; re-exported here for callers.
+from qdcnn._validation import check_shape
+from qdcnn.classes import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.config import LabelConfig
 from qdcnn.errors import InputError, ParameterError
-
-DIRECTIONS: tuple[str, str, str] = ("left", "straight", "right")
-LEFT, STRAIGHT, RIGHT = 0, 1, 2
 
 _DEFAULTS = LabelConfig()
 
@@ -217,8 +217,7 @@ def _as_series(
     steering: ArrayLike, timestamps: ArrayLike | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     x = np.asarray(steering, dtype=np.float64)
-    if x.ndim != 1:
-        raise ParameterError("steering", f"<array of shape {x.shape}>", "a 1-D array")
+    check_shape("steering", x, "N", "a 1-D array")
     if not np.all(np.isfinite(x)):
         bad = int(np.count_nonzero(~np.isfinite(x)))
         raise ParameterError("steering", f"<{bad} non-finite values>", "finite numbers")

@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from qdcnn._fileio import temporary_sibling
 from qdcnn._optional import has_module, require
+from qdcnn._validation import has_shape
 from qdcnn.errors import InputError, ParameterError
 
 VIDEO_SUFFIXES = frozenset({".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm"})
@@ -805,7 +806,7 @@ class VideoWriter:
     def write(self, image: NDArray[np.uint8], timestamp: float | None = None) -> None:
         """Append one RGB uint8 frame (all frames must have the first frame's size)."""
         arr = np.asarray(image)
-        if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
+        if arr.dtype != np.uint8 or not has_shape(arr, "H,W,3"):
             raise InputError(
                 "image", f"expected an RGB uint8 array (H, W, 3), got {arr.dtype} {arr.shape}"
             )

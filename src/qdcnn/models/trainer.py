@@ -34,6 +34,7 @@ from qdcnn._validation import (
     check_float,
     check_int,
     check_seed,
+    has_shape,
 )
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.models.samples import N_CLASSES, class_weights, context_windows, split_train_val
@@ -220,7 +221,7 @@ class FrameSamples:
         return cls(frames, windows, y)
 
     def __post_init__(self) -> None:
-        if self.windows.ndim != 2 or len(self.windows) != len(self.labels):
+        if not has_shape(self.windows, f"{len(self.labels)},W"):
             raise InputError(
                 "samples",
                 f"{tuple(self.windows.shape)} windows for {tuple(self.labels.shape)} labels",

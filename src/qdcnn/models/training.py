@@ -30,7 +30,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
-from qdcnn._validation import check_bool, check_choice, check_int
+from qdcnn._validation import check_bool, check_choice, check_input_shape, check_int, has_shape
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.models.networks import (
@@ -47,6 +47,7 @@ from qdcnn.models.samples import (
     context_windows,
     split_train_val,
 )
+from qdcnn.quantum.noise import GateNoise, is_noise
 
 if TYPE_CHECKING:
     import torch
@@ -85,7 +86,7 @@ def _as_images(
             raise InputError(
                 source, "expected a uint8 array (N, H, W, 3) or a list of equal-size frames"
             ) from None
-    if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[-1] != 3 or 0 in arr.shape:
+    if arr.dtype != np.uint8 or not has_shape(arr, "N,H,W,3") or 0 in arr.shape:
         raise InputError(
             source,
             f"expected a non-empty uint8 RGB array of shape (N, H, W, 3), "
@@ -96,8 +97,7 @@ def _as_images(
 
 def _as_labels(labels: ArrayLike, n: int, source: str = "labels") -> NDArray[np.int64]:
     y = np.asarray(labels)
-    if y.ndim != 1 or len(y) != n:
-        raise InputError(source, f"expected {n} labels (one per image), got shape {y.shape}")
+    check_input_shape(source, y, str(n), f"{n} labels (one per image)")
     if y.dtype.kind == "f" and np.all(np.isfinite(y)) and np.all(y == np.round(y)):
         y = y.astype(np.int64)
     if y.dtype.kind not in "iu" or np.any((y < 0) | (y >= N_CLASSES)):
@@ -150,25 +150,25 @@ def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
             return str(v)
         if isinstance(v, tuple):
             return list(v)
-        if hasattr(v, "label") and hasattr(v, "is_ideal"):  # a noise model: by its label
+        if is_noise(v):  # a noise model: by its label
             return None if v.is_ideal else v.label()
         return v
 
     return {k: plain(v) for k, v in params.items()}
 
 
-def _as_noise(name: str, value: Any) -> Any:
+def _as_noise(name: str, value: object) -> GateNoise | None:
     """``value`` as a noise model: ``None``, a noise object, or its text (parsed)."""
-    if value is None or (hasattr(value, "label") and hasattr(value, "is_ideal")):
+    if value is None or is_noise(value):
         return value
     if isinstance(value, str):
-        from qdcnn.quantum.noise import parse_noise
+        from qdcnn.quantum.noise_text import parse_noise
 
         return parse_noise(value)
     raise ParameterError(name, value, "None, a noise model or its text (depolarizing:0.1)")
 
 
-def _set_quantum_noise(network: Any, noise: Any, name: str) -> None:
+def _set_quantum_noise(network: Any, noise: GateNoise | None, name: str) -> None:
     """Put ``noise`` on every quantum layer of ``network``; refuse noise without one."""
     layers = [m for m in network.modules() if hasattr(m, "set_noise")]
     if noise is not None and not layers:
@@ -335,8 +335,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         crop: tuple[float, float] | None = None,
         context: int = 1,
         network_params: Mapping[str, Any] | None = None,
-        noise: Any = None,
-        train_noise: Any = None,
+        noise: GateNoise | str | None = None,
+        train_noise: GateNoise | str | None = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -498,7 +498,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     # -------------------------------------------------------------- inference
     def predict_proba(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.float64]:
         """Class probabilities ``(N, 3)`` for left, straight, right.
 
@@ -544,7 +544,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         return normalise(stacked.reshape(b, k * c, h, w).to(self.device_), self.input_spec_)
 
     def predict(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
         :meth:`predict_proba`)."""

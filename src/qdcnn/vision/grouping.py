@@ -77,6 +77,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
+from qdcnn._validation import has_shape
 from qdcnn.config import GroupingConfig
 from qdcnn.errors import InputError, ParameterError
 
@@ -326,7 +327,7 @@ def _checked_segments(
     seg = np.asarray(segments, dtype=np.float64)
     if seg.size == 0:
         seg = seg.reshape(0, 4)
-    if seg.ndim != 2 or seg.shape[1] != 4 or not np.isfinite(seg).all():
+    if not has_shape(seg, "N,4") or not np.isfinite(seg).all():
         raise InputError("segments", f"expected a finite (N, 4) array, got shape {seg.shape}")
     if len(shape) < 2 or shape[0] < 1 or shape[1] < 1:
         raise InputError("shape", f"expected (H, W), got {tuple(shape)}")

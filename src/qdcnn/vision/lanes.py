@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_input_shape
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.marks import marking_mask_u8
@@ -54,8 +55,7 @@ def _check_frame(image: NDArray[np.uint8]) -> None:
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
         kind = getattr(image, "dtype", type(image).__name__)
         raise InputError("image", f"expected a uint8 array, got {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
-        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
+    check_input_shape("image", image, "H,W,3|H,W")
 
 
 def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_input_shape
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
 
@@ -102,8 +103,7 @@ def marking_mask(
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
         kind = getattr(image, "dtype", type(image).__name__)
         raise InputError("image", f"expected a uint8 array, got {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
-        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
+    check_input_shape("image", image, "H,W,3|H,W")
     return marking_mask_u8(image, config, width) > 0
 
 
