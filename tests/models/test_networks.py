@@ -18,19 +18,21 @@ from qdcnn.errors import InputError, ParameterError  # noqa: E402
 from qdcnn.models import ARCHS, CNNDirectionClassifier  # noqa: E402
 from qdcnn.models.hybrid import HYBRIDS  # noqa: E402
 from qdcnn.models.networks import (  # noqa: E402
-    HYBRID_NETWORKS,
     NETWORKS,
     NetworkEntry,
     build_network,
-    hybrid_of,
     input_spec,
     network_entry,
-    network_label,
     register_network,
 )
 from qdcnn.models.pilotnet import PilotNet  # noqa: E402
 from qdcnn.models.preprocess import PILOTNET_INPUT, normalise  # noqa: E402
-from qdcnn.models.specs import InputSpec  # noqa: E402
+from qdcnn.models.specs import (  # noqa: E402
+    HYBRID_NETWORKS,
+    InputSpec,
+    hybrid_of,
+    network_label,
+)
 
 
 def test_registry_holds_the_baselines_and_the_hybrids() -> None:

@@ -27,7 +27,7 @@ from sklearn.base import BaseEstimator
 
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError
-from qdcnn.models.networks import HEADS, HYBRID_NETWORKS, hybrid_of
+from qdcnn.models.specs import HEADS, HYBRID_NETWORKS, hybrid_of
 from qdcnn.vision.grouping import GROUPINGS
 
 __all__ = [

@@ -28,7 +28,6 @@ from typing import Any
 from qdcnn._optional import require
 from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
-from qdcnn.models.networks import HEADS, HYBRID_NETWORKS
 from qdcnn.models.pilotnet import PilotNet
 from qdcnn.models.quantum_layers import (
     READOUT_GAIN,
@@ -37,6 +36,7 @@ from qdcnn.models.quantum_layers import (
     RingMLPHead,
     UUConv2d,
 )
+from qdcnn.models.specs import HEADS, HYBRID_NETWORKS
 from qdcnn.quantum.noise import NoiseSpec
 
 require("torch", "the hybrid quantum networks")
@@ -217,7 +217,7 @@ def qdcnn_quanv(
 
 
 #: The builder of each hybrid network, by name (the table is
-#: :data:`qdcnn.models.networks.HYBRID_NETWORKS`).
+#: :data:`qdcnn.models.specs.HYBRID_NETWORKS`).
 HYBRIDS: dict[str, Callable[..., HybridNet]] = {
     h.name: globals()[h.builder] for h in HYBRID_NETWORKS
 }

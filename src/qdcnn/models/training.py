@@ -38,7 +38,6 @@ from qdcnn.models.networks import (
     NetworkEntry,
     input_spec,
     network_entry,
-    network_label,
 )
 from qdcnn.models.samples import (
     N_CLASSES,
@@ -47,6 +46,7 @@ from qdcnn.models.samples import (
     context_windows,
     split_train_val,
 )
+from qdcnn.models.specs import network_label
 from qdcnn.quantum.noise import GateNoise, is_noise
 
 if TYPE_CHECKING:
