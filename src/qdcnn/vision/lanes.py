@@ -24,7 +24,7 @@ Named options (not the paper's; the defaults leave the paper's stage unchanged):
 - ``marks``: Canny runs on a mask of white and yellow markings
   (:func:`qdcnn.vision.marks.marking_mask`) instead of the grey frame.
 - ``max_segment_angle`` and ``vp_tolerance``: segments too steep, or whose line misses the
-  vanishing point, are dropped (:func:`filter_segments`).
+  vanishing point, are dropped (:func:`_filter_segments`).
 
 References
 ----------
@@ -220,7 +220,7 @@ def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArr
     return edges
 
 
-def segments_from_edges(
+def _segments_from_edges(
     edges: NDArray[np.uint8],
     config: LaneConfig = _DEFAULT,
     frame_shape: tuple[int, ...] | None = None,
@@ -231,7 +231,7 @@ def segments_from_edges(
     which makes descriptors independent of the order OpenCV reports the ends in. When
     ``frame_shape`` (the ``(H, W)`` of the frame the edges were computed for, at another
     size) is given, the segments are scaled to its pixels (pixel centres map to pixel
-    centres). Then :func:`filter_segments` applies the angle and vanishing-point filters.
+    centres). Then :func:`_filter_segments` applies the angle and vanishing-point filters.
     """
     found = cv2.HoughLinesP(
         edges,
@@ -252,10 +252,10 @@ def segments_from_edges(
         shape = (int(frame_shape[0]), int(frame_shape[1]))
     flip = (seg[:, 1] > seg[:, 3]) | ((seg[:, 1] == seg[:, 3]) & (seg[:, 0] > seg[:, 2]))
     seg[flip] = seg[flip][:, [2, 3, 0, 1]]
-    return filter_segments(seg, shape, config)
+    return _filter_segments(seg, shape, config)
 
 
-def filter_segments(
+def _filter_segments(
     segments: NDArray[np.float64], shape: tuple[int, ...], config: LaneConfig = _DEFAULT
 ) -> NDArray[np.float64]:
     """Drop segments by angle and by position relative to the vanishing point.
@@ -317,4 +317,4 @@ def detect_segments(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> 
     """
     _check_frame(image)
     work = working_frame(image, config.work_width)
-    return segments_from_edges(lane_edges(work, config), config, image.shape)
+    return _segments_from_edges(lane_edges(work, config), config, image.shape)
