@@ -18,13 +18,9 @@ from qdcnn.data.images import write_image
 from qdcnn.data.video import VideoReader
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.outputs import OutputFolder, OutputLockedError
-from qdcnn.runtime.engine import (
-    FRAMES_CSV,
-    Progress,
-    RunOptions,
-    majority_vote,
-    run_inputs,
-)
+from qdcnn.runtime.chunks import majority_vote
+from qdcnn.runtime.engine import Progress, RunOptions, run_inputs
+from qdcnn.runtime.manifest import FRAMES_CSV
 
 pytest.importorskip("av")
 
