@@ -375,23 +375,31 @@ def test_the_lane_pipeline_processor_gives_each_frame_its_own_result(tmp_path: P
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("busy_cpu")
 def test_local_cluster_with_a_killed_worker_gives_identical_output(
     clip: Path, reference: bytes, tmp_path: Path
 ) -> None:
     pytest.importorskip("distributed")
     from qdcnn.runtime.scheduler import Executor
 
-    marker = tmp_path / "killed.txt"
-    processor = HalvesProcessor(kill_at=21, marker=str(marker))
-    seen: list[Progress] = []
+    alone = tmp_path / "alone"
+    run_inputs([clip], HalvesProcessor(), alone, options=OPTIONS)
     with Executor("local:2", timeout=60) as ex:
-        result = run_inputs(
-            [clip], processor, tmp_path / "out", options=OPTIONS, executor=ex, progress=seen.append
-        )
-    assert marker.exists() and result.ok  # a worker died mid-chunk; the job finished
-    assert (tmp_path / "out" / "drive" / FRAMES_CSV).read_bytes() == reference
-    assert result.executor["kind"] == "local" and result.executor["workers"] == 2
-    assert seen[-1] == Progress("drive", N, N)
+        # the first task's first frame (its worker may hold the only computed copy of the
+        # shared processor and sources), mid-run, and in the last chunks
+        for kill_at in (0, 21, 45):
+            marker = tmp_path / f"killed-at-{kill_at}.txt"
+            processor = HalvesProcessor(kill_at=kill_at, marker=str(marker))
+            out, seen = tmp_path / f"out-{kill_at}", list[Progress]()
+            result = run_inputs(
+                [clip], processor, out, options=OPTIONS, executor=ex, progress=seen.append
+            )
+            assert marker.exists() and result.ok, kill_at  # a worker died; the job finished
+            for name in (FRAMES_CSV, "overlay.mp4"):
+                assert (out / "drive" / name).read_bytes() == (alone / "drive" / name).read_bytes()
+            assert (out / "drive" / FRAMES_CSV).read_bytes() == reference
+            assert result.executor["kind"] == "local" and result.executor["workers"] == 2
+            assert seen[-1] == Progress("drive", N, N)
 
 
 def test_without_pyav_opencv_decodes_encodes_and_joins(
