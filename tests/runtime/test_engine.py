@@ -98,13 +98,6 @@ def test_decisions_do_not_depend_on_chunking_and_smoothing_is_a_trailing_vote(
     assert "direction_raw" not in plain[0] and [r["direction"] for r in plain] == raw
 
 
-def test_majority_vote_prefers_the_most_recent_of_tied_decisions() -> None:
-    assert majority_vote(["left", "left", "right"]) == "left"
-    assert majority_vote(["left", "right"]) == "right"
-    assert majority_vote(["right", "left", None]) == "left"
-    assert majority_vote([None, None]) is None
-
-
 def test_a_re_run_skips_finished_work_and_redoes_missing_or_stale_work(
     clip: Path, reference: bytes, tmp_path: Path
 ) -> None:

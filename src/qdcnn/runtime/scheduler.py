@@ -22,7 +22,7 @@ that a second run would change), because Dask runs a task again when its worker 
 it raises. Tasks, shared objects and results travel between processes pickled *in
 memory* by Dask; no file is ever unpickled. ``shared`` objects are not sent with every
 task: each is the result of one small task that returns it (:func:`_shared_value`),
-which the tasks depend on, so workers fetch it from each other once. Nothing a task needs
+which the tasks depend on, so each worker fetches it once, from another. Nothing a task needs
 exists only on one worker: a lost worker's copy is recomputed elsewhere from the task's
 definition, which the scheduler keeps (scattered data, by contrast, is lost with the
 last worker holding it, and every task needing it is cancelled).
@@ -227,7 +227,7 @@ class Executor:
         )
         self._client = distributed.Client(self._cluster, timeout=self.timeout)
         self._client.wait_for_workers(n, timeout=self.timeout)  # slow to register under load
-        self._client.run(_limit_threads)
+        self._client.register_worker_callbacks(_limit_threads)  # restarted workers too
 
     def _connect(self, address: str) -> None:
         distributed = require("distributed", "connecting to a Dask scheduler (--scheduler)")
