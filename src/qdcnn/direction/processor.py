@@ -1,4 +1,4 @@
-"""Today's per-frame pipeline as a :class:`~qdcnn.runtime.engine.FrameProcessor`.
+"""Today's per-frame pipeline as a :class:`~qdcnn.runtime.chunks.FrameProcessor`.
 
 :class:`LaneDirectionProcessor` runs UU-dagger shadow detection and removal, the lane stage
 and a fitted direction model on each frame, and draws the video overlay (shadow tint, lane
@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.runtime.engine import FrameOutcome
+from qdcnn.runtime.chunks import FrameOutcome
 from qdcnn.vision.grouping import LaneFeatures
 from qdcnn.vision.overlays import (
     GROUP_COLOURS,
