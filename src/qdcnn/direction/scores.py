@@ -57,6 +57,7 @@ _LABELS = list(range(N_CLASSES))
 DEFAULT_MIN_BLOCK = 2 * LabelConfig().window + 1
 #: The automatic block length is this many times Politis & White's MSE-optimal length.
 BLOCK_FACTOR = 2.0
+_PW_RUN = 5  # Politis & White's K: small autocorrelations in a row that end the dependence
 METHOD = "circular block bootstrap, percentile, widened by sqrt(n/(n-b)) and t(n/b-1)/z"
 
 
@@ -257,19 +258,7 @@ def block_bootstrap(
     ('0.70 [0.62, 0.78]', 25)
     """
     truth, pred = _check_pair(y_true, y_pred)
-    check_choice("metric", metric, METRICS)
-    _check_defined(truth, metric)
-    block = _resolve_block(block, min_block, truth.size, _influence(truth, pred, metric))
-    idx = _resample_indices(
-        np.random.default_rng(check_seed("seed", seed)),
-        truth.size,
-        block,
-        check_int("resamples", resamples, 10, 10**6),
-    )
-    point = float(_metric_values(truth, pred, metric, None)[0])
-    values = _metric_values(truth, pred, metric, idx)
-    low, high = _widened_percentile(point, values, truth.size, block, level, (0.0, 1.0))
-    return Interval(low, high, resamples, block, METHOD, level)
+    return _bootstrap(truth, (pred,), metric, block, min_block, resamples, seed, level)[1]
 
 
 def paired_difference(
@@ -305,22 +294,38 @@ def paired_difference(
     """
     truth, a = _check_pair(y_true, pred_a)
     _, b = _check_pair(y_true, pred_b, "pred_b")
+    value, interval = _bootstrap(truth, (a, b), metric, block, min_block, resamples, seed, level)
+    return Difference(metric, value, interval)
+
+
+def _bootstrap(
+    truth: NDArray[np.int64],
+    preds: tuple[NDArray[np.int64], ...],
+    metric: str,
+    block: int | None,
+    min_block: int,
+    resamples: int,
+    seed: int,
+    level: float,
+) -> tuple[float, Interval]:
+    """Point value and interval of ``metric`` of ``preds[0]`` (minus that of ``preds[1]``)."""
     check_choice("metric", metric, METRICS)
     _check_defined(truth, metric)
-    series = _influence(truth, a, metric) - _influence(truth, b, metric)
+    series = _first_minus_second([_influence(truth, p, metric) for p in preds])
     block = _resolve_block(block, min_block, truth.size, series)
-    idx = _resample_indices(
-        np.random.default_rng(check_seed("seed", seed)),
-        truth.size,
-        block,
-        check_int("resamples", resamples, 10, 10**6),
-    )
-    point = float(
-        _metric_values(truth, a, metric, None)[0] - _metric_values(truth, b, metric, None)[0]
-    )
-    values = _metric_values(truth, a, metric, idx) - _metric_values(truth, b, metric, idx)
-    low, high = _widened_percentile(point, values, truth.size, block, level, (-1.0, 1.0))
-    return Difference(metric, point, Interval(low, high, resamples, block, METHOD, level))
+    rng = np.random.default_rng(check_seed("seed", seed))
+    resamples = check_int("resamples", resamples, 10, 10**6)
+    idx = _resample_indices(rng, truth.size, block, resamples)
+    point = float(_first_minus_second([_metric_values(truth, p, metric, None) for p in preds])[0])
+    values = _first_minus_second([_metric_values(truth, p, metric, idx) for p in preds])
+    bounds = (0.0, 1.0) if len(preds) == 1 else (-1.0, 1.0)
+    low, high = _widened_percentile(point, values, truth.size, block, level, bounds)
+    return point, Interval(low, high, resamples, block, METHOD, level)
+
+
+def _first_minus_second(arrays: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """``arrays[0]``, or ``arrays[0] - arrays[1]`` for a pair."""
+    return arrays[0] - arrays[1] if len(arrays) == 2 else arrays[0]
 
 
 def block_length(
@@ -345,16 +350,18 @@ def politis_white_block(series: ArrayLike) -> float:
     """MSE-optimal circular-block length of a series' mean (Politis & White 2004).
 
     With the correction of Patton, Politis & White (2009): autocovariances up to the
-    lag ``m`` after which ``K = max(5, sqrt(log10 n))`` autocorrelations in a row are
-    below ``2 sqrt(log10 n / n)``, weighted by a flat-top window over ``2 m`` lags.
-    A constant series gives 1.
+    lag ``m`` after which ``K = 5`` autocorrelations in a row are below
+    ``2 sqrt(log10 n / n)`` (their ``K = max(5, sqrt(log10 n))`` is 5 below 1e25 frames),
+    weighted by a flat-top window over ``2 m`` lags. A constant or very short series gives 1.
     """
     x = np.asarray(series, dtype=np.float64)
     n = x.size
+    if n < 3:
+        return 1.0
     eps = x - x.mean()
-    max_lag = min(n - 1, math.ceil(math.sqrt(n)) + max(5, int(math.sqrt(math.log10(n)))))
+    max_lag = min(n - 1, math.ceil(math.sqrt(n)) + _PW_RUN)
     acv = np.array([eps[k:] @ eps[: n - k] for k in range(max_lag + 1)]) / n
-    if n < 3 or acv[0] <= 1e-12 * max(1.0, float(np.mean(x**2))):
+    if acv[0] <= 1e-12 * max(1.0, float(np.mean(x**2))):
         return 1.0
     lags = 2 * _last_correlated_lag(acv[1:] / acv[0], n)
     lags = max(1, min(lags, max_lag))
@@ -369,10 +376,9 @@ def politis_white_block(series: ArrayLike) -> float:
 
 def _last_correlated_lag(acf: NDArray[np.float64], n: int) -> int:
     """Smallest ``m >= 1`` with ``|acf|`` below the threshold at lags ``m + 1 .. m + K``."""
-    run = max(5, math.ceil(math.sqrt(math.log10(n))))
     small = np.abs(acf) < 2.0 * math.sqrt(math.log10(n) / n)
-    for m in range(1, acf.size - run + 1):
-        if small[m : m + run].all():  # acf[j] is lag j + 1
+    for m in range(1, acf.size - _PW_RUN + 1):
+        if small[m : m + _PW_RUN].all():  # acf[j] is lag j + 1
             return m
     return acf.size
 
