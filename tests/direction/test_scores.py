@@ -241,7 +241,11 @@ def test_same_seed_same_interval_other_seed_other_interval() -> None:
 
 
 def test_five_thousand_frames_thousand_resamples_is_fast() -> None:
+    """Best of three, so a busy machine's pause does not count."""
     y, p = accuracy_draw(np.random.default_rng(6), n=5000)
-    start = time.perf_counter()
-    block_bootstrap(y, p, "accuracy", resamples=1000)
-    assert time.perf_counter() - start < 1.0
+    seconds = []
+    for _ in range(3):
+        start = time.perf_counter()
+        block_bootstrap(y, p, "accuracy", resamples=1000)
+        seconds.append(time.perf_counter() - start)
+    assert min(seconds) < 1.0
