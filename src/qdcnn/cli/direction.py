@@ -15,6 +15,7 @@ from qdcnn.cli._common import (
     FoldsOpt,
     GapOpt,
     JsonOpt,
+    QuietOpt,
     SeedOpt,
     emit,
     fail,
@@ -168,6 +169,7 @@ def evaluate_cmd(
     track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     try:
@@ -186,7 +188,7 @@ def evaluate_cmd(
             use_cache=cache,
             scheduler=scheduler,
         )
-        result = run_evaluation(spec, CliReporter(as_json))
+        result = run_evaluation(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json and result.failures:
@@ -249,6 +251,7 @@ def train_direction_cmd(
     inner_lines: InnerOpt2 = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it.
 
@@ -268,7 +271,7 @@ def train_direction_cmd(
             gap,
             training_options(epochs, weights, threads, not as_json, context),
         )
-        result = train_direction(spec, CliReporter(False))
+        result = train_direction(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -291,6 +294,7 @@ def detect_lanes_cmd(
     force: Annotated[bool, typer.Option(help="Redo images already done.")] = False,
     wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
@@ -299,7 +303,7 @@ def detect_lanes_cmd(
     """
     try:
         spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)
-        result = detect_lanes(spec, CliReporter(as_json))
+        result = detect_lanes(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -14,6 +14,7 @@ from qdcnn.cli._common import (
     FoldsOpt,
     GapOpt,
     JsonOpt,
+    QuietOpt,
     SeedOpt,
     emit,
     fail,
@@ -117,6 +118,7 @@ def noise_sweep_cmd(
     threads: ThreadsOpt = None,
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
 
@@ -138,7 +140,7 @@ def noise_sweep_cmd(
             readout, folds, gap, inner_folds, config, shadow_set, shadow_frames, plot, seed,
             cache, shadow_thresholds, training_options(epochs, None, threads, False), scheduler,
         )  # fmt: skip
-        run = run_noise_sweep(spec, CliReporter(False))
+        run = run_noise_sweep(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -193,6 +195,7 @@ def circuit_cmd(
         Path | None, typer.Option(help="Write the circuit as OpenQASM 3 (measured) to this file.")
     ] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Print a circuit's diagram and outcome probabilities; optionally export OpenQASM 3.
 
@@ -204,7 +207,7 @@ def circuit_cmd(
             kind, theta_c, theta_x, x, weights, feature_map_reps, noise, shots, backend, seed,
             qasm, qubits, layers, False, model,
         )  # fmt: skip
-        result = inspect_circuit(spec, CliReporter(False))
+        result = inspect_circuit(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.cli._common import CliReporter, JsonOpt, QuietOpt, emit, fail, out
 from qdcnn.errors import QdcnnError
 from qdcnn.experiments.run import RunSpec, run
 from qdcnn.runtime.engine import RunOptions, RunResult
@@ -34,6 +34,7 @@ def run_cmd(
     wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of shot sampling and of the default model.")] = 0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Per-frame direction, shadow fraction and lanes of every input; resumable after a crash.
 
@@ -45,7 +46,7 @@ def run_cmd(
             chunk_frames=chunk, smooth=smooth, overlay=video, force=force, wait=wait
         )
         spec = RunSpec(tuple(inputs), out_dir, model, method, options, scheduler, seed)
-        result = run(spec, CliReporter(as_json))
+        result = run(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
