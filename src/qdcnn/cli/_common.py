@@ -29,7 +29,7 @@ from rich.progress import (
 )
 
 from qdcnn.errors import QdcnnError
-from qdcnn.runtime.reporting import Advance, Failure, ProgressLines, Reporter, progress_interval
+from qdcnn.runtime.reporting import Advance, Failure, Reporter
 
 try:  # Typer 0.24+ carries its own copy of click and does not install click
     from typer import _click as click
@@ -125,7 +125,7 @@ class CliReporter(Reporter):
         self.as_json = as_json
         self.on_result = on_result
         self.quiet = quiet
-        self._open_lines: list[ProgressLines] = []
+        self._open_lines: list[Any] = []  # the ProgressLines open, innermost last
         self._bar: Any = None
 
     def result(self, item: Mapping[str, Any]) -> None:
@@ -155,7 +155,9 @@ class CliReporter(Reporter):
                 yield lines.advance
 
     @contextmanager
-    def _plain_lines(self, total: int, description: str) -> Iterator[ProgressLines]:
+    def _plain_lines(self, total: int, description: str) -> Iterator[Any]:
+        from qdcnn.runtime.reporting import ProgressLines, progress_interval
+
         outer = self._open_lines[-1] if self._open_lines else None
         if outer is not None:
             outer.pause()
@@ -171,31 +173,31 @@ class CliReporter(Reporter):
 
     @contextmanager
     def _bar_task(self, total: int, description: str) -> Iterator[Advance]:
-        """A task on the open bar (Rich before 14 allows one live display), or a new bar."""
-        if self._bar is not None:
-            bar = self._bar
-            task = bar.add_task(escape(description), total=total)
-            try:
-                yield lambda *_: bar.advance(task)
-            finally:
-                bar.remove_task(task)
+        """A task on the open bar (Rich before 14 allows one live display), or on a new one."""
+        if self._bar is None:
+            bar = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TaskProgressColumn(),
+                TimeRemainingColumn(),
+                console=err,
+                transient=True,
+            )
+            with bar:
+                self._bar = bar
+                try:
+                    with self._bar_task(total, description) as advance:
+                        yield advance
+                finally:
+                    self._bar = None
             return
-        bar = Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TaskProgressColumn(),
-            TimeRemainingColumn(),
-            console=err,
-            transient=True,
-        )
+        bar = self._bar
         task = bar.add_task(escape(description), total=total)
-        with bar:
-            self._bar = bar
-            try:
-                yield lambda *_: bar.advance(task)
-            finally:
-                self._bar = None
+        try:
+            yield lambda *_: bar.advance(task)
+        finally:
+            bar.remove_task(task)
 
 
 def _plain_line(line: str) -> None:
