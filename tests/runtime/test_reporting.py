@@ -17,15 +17,33 @@ class FakeClock:
         return self.now
 
 
+class Recorded:
+    """Lines every 10 seconds of a fake clock, kept in ``lines``; no heartbeat thread (the
+    script calls ``beat`` itself)."""
+
+    def __init__(self) -> None:
+        self.clock = FakeClock()
+        self.lines: list[str] = []
+
+    def play(self, total: int, description: str, script: str) -> list[str]:
+        """Run ``script`` inside the progress: ``+N`` moves the clock N seconds, ``advance``,
+        ``beat``, ``pause``, ``resume`` call those; ``raise`` raises RuntimeError."""
+        progress = ProgressLines(
+            total, description, self.lines.append, interval=10, clock=self.clock, heartbeat=False
+        )
+        with progress:
+            for word in script.split():
+                if word.startswith("+"):
+                    self.clock.now += float(word)
+                elif word == "raise":
+                    raise RuntimeError("boom")
+                else:
+                    getattr(progress, word)()
+        return self.lines
+
+
 def test_steps_print_at_most_one_line_per_interval() -> None:
-    clock, lines = FakeClock(), []
-    with ProgressLines(
-        25, "lane features (x)", lines.append, interval=10, clock=clock, heartbeat=False
-    ) as p:
-        for _ in range(25):
-            clock.now += 1.0
-            p.advance()
-    assert lines == [
+    assert Recorded().play(25, "lane features (x)", "+1 advance " * 25) == [
         "progress: lane features (x): 0/25, 0.0 s",
         "progress: lane features (x): 10/25, 10.0 s",
         "progress: lane features (x): 20/25, 20.0 s",
@@ -34,16 +52,8 @@ def test_steps_print_at_most_one_line_per_interval() -> None:
 
 
 def test_the_heartbeat_repeats_the_last_state_only_once_an_interval_has_passed() -> None:
-    clock, lines = FakeClock(), []
-    with ProgressLines(3, "fit", lines.append, interval=10, clock=clock, heartbeat=False) as p:
-        p.advance()
-        clock.now += 9.0
-        p.beat()  # too early: nothing
-        clock.now += 1.0
-        p.beat()
-        p.beat()  # nothing new to wait for yet
-        clock.now += 10.0
-        p.beat()
+    # too early at 9 s; at 10 s a line, and none again until 10 s later
+    lines = Recorded().play(3, "fit", "advance +9 beat +1 beat beat +10 beat")
     assert lines[1:] == [
         "progress: fit: 1/3, 10.0 s",
         "progress: fit: 1/3, 20.0 s",
@@ -52,15 +62,8 @@ def test_the_heartbeat_repeats_the_last_state_only_once_an_interval_has_passed()
 
 
 def test_a_paused_outer_piece_of_work_keeps_quiet_until_resumed() -> None:
-    clock, lines = FakeClock(), []
-    with ProgressLines(2, "outer", lines.append, interval=10, clock=clock, heartbeat=False) as p:
-        p.pause()
-        clock.now += 30.0
-        p.beat()
-        p.resume()
-        p.beat()  # resumed: the next line an interval from now
-        clock.now += 10.0
-        p.beat()
+    # resumed: the next line an interval from then
+    lines = Recorded().play(2, "outer", "pause +30 beat resume beat +10 beat")
     assert lines == [
         "progress: outer: 0/2, 0.0 s",
         "progress: outer: 0/2, 40.0 s",
@@ -69,13 +72,10 @@ def test_a_paused_outer_piece_of_work_keeps_quiet_until_resumed() -> None:
 
 
 def test_work_that_raises_ends_with_stopped_after() -> None:
-    clock, lines = FakeClock(), []
+    log = Recorded()
     with pytest.raises(RuntimeError):
-        with ProgressLines(4, "sweep", lines.append, clock=clock, heartbeat=False) as p:
-            p.advance()
-            clock.now += 2.5
-            raise RuntimeError("boom")
-    assert lines[-1] == "progress: sweep: 1/4, stopped after 2.5 s"
+        log.play(4, "sweep", "advance +2.5 raise")
+    assert log.lines[-1] == "progress: sweep: 1/4, stopped after 2.5 s"
 
 
 def test_the_heartbeat_thread_prints_while_a_step_never_advances() -> None:
