@@ -374,12 +374,19 @@ def train_shadows(
     for f in failures:
         report.failure(f)
     cfg = ShadowConfig(feature=spec.features[0], shots=None)  # type: ignore[arg-type]
-    if len(spec.features) == 1 and spec.centroids == 1:
-        grid = SHADOW_THRESHOLD_GRID if spec.search_threshold else None
-        model = train_shadow_model(images, masks, cfg, thresholds=grid)
-    else:
-        model = train_multi_shadow_model(
-            images, masks, cfg, features=spec.features, n_centroids=spec.centroids, seed=spec.seed
-        )
+    with report.progress(1, f"training a shadow model on {len(images)} images") as trained:
+        if len(spec.features) == 1 and spec.centroids == 1:
+            grid = SHADOW_THRESHOLD_GRID if spec.search_threshold else None
+            model = train_shadow_model(images, masks, cfg, thresholds=grid)
+        else:
+            model = train_multi_shadow_model(
+                images,
+                masks,
+                cfg,
+                features=spec.features,
+                n_centroids=spec.centroids,
+                seed=spec.seed,
+            )
+        trained()
     path = model.save(spec.out)
     return ShadowTrainingResult(model, Path(path), failures)
