@@ -19,6 +19,7 @@ from qdcnn.cli._common import (
     FoldsOpt,
     GapOpt,
     JsonOpt,
+    QuietOpt,
     SeedOpt,
     emit,
     fail,
@@ -177,6 +178,7 @@ def evaluate_cmd(
     track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     from qdcnn.direction.methods import with_head
@@ -198,7 +200,7 @@ def evaluate_cmd(
             use_cache=cache,
             scheduler=scheduler,
         )
-        result = run_evaluation(spec, CliReporter(as_json))
+        result = run_evaluation(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json and result.failures:
@@ -261,6 +263,7 @@ def train_direction_cmd(
     inner_lines: InnerOpt2 = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it.
 
@@ -283,7 +286,7 @@ def train_direction_cmd(
             gap,
             training_options(epochs, weights, threads, not as_json, context),
         )
-        result = train_direction(spec, CliReporter(False))
+        result = train_direction(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -306,6 +309,7 @@ def detect_lanes_cmd(
     force: Annotated[bool, typer.Option(help="Redo images already done.")] = False,
     wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
@@ -316,7 +320,7 @@ def detect_lanes_cmd(
 
     try:
         spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)
-        result = detect_lanes(spec, CliReporter(as_json))
+        result = detect_lanes(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out
+from qdcnn.cli._common import CliReporter, JsonOpt, QuietOpt, emit, fail, out
 from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
@@ -35,6 +35,7 @@ def run_cmd(
     wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of shot sampling and of the default model.")] = 0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Per-frame direction, shadow fraction and lanes of every input; resumable after a crash.
 
@@ -49,7 +50,7 @@ def run_cmd(
             chunk_frames=chunk, smooth=smooth, overlay=video, force=force, wait=wait
         )
         spec = RunSpec(tuple(inputs), out_dir, model, method, options, scheduler, seed)
-        result = run(spec, CliReporter(as_json))
+        result = run(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out, report_error
+from qdcnn.cli._common import CliReporter, JsonOpt, QuietOpt, emit, fail, out, report_error
 from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
@@ -49,6 +49,7 @@ def detect_shadows_cmd(
     force: Annotated[bool, typer.Option(help="Redo images whose mask is already done.")] = False,
     wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Detect shadows; write a 0/255 mask per image at input size.
 
@@ -66,7 +67,8 @@ def detect_shadows_cmd(
         spec = ShadowDetectionSpec(
             tuple(paths), out_dir, method, cfg, model, backend, seed, force, wait
         )
-        result = run_shadow_detection(spec, CliReporter(as_json, lambda r: _mask_row(table, r)))
+        reporter = CliReporter(as_json, lambda r: _mask_row(table, r), quiet=quiet)
+        result = run_shadow_detection(spec, reporter)
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -134,6 +136,7 @@ def train_shadows_cmd(
     ] = True,
     seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Train a UU-dagger shadow model on images with masks.
 
@@ -147,7 +150,7 @@ def train_shadows_cmd(
     names = tuple(f.strip() for f in features.split(",") if f.strip())
     try:
         spec = ShadowTrainingSpec(data, out_file, names, centroids, search_threshold, seed)
-        result = train_shadows(spec, CliReporter(False))
+        result = train_shadows(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -30,6 +30,7 @@ from qdcnn.direction.methods import DirectionMethod, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.direction.protocol import cross_validate, majority_baseline, pooled_accuracy
 from qdcnn.errors import InputError
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -74,8 +75,11 @@ def default_direction_model(
     *,
     data: str | Sequence[str] = DEFAULT_TRAINING_DATA,
     use_cache: bool = True,
+    reporter: Reporter | None = None,
 ) -> DirectionModel:
     """Lane method ``method`` trained on ``data`` (dataset specs), read from the cache if there.
+
+    ``reporter`` is told the training's progress (a minute when nothing is cached).
 
     Raises
     ------
@@ -92,7 +96,7 @@ def default_direction_model(
             return DirectionModel.load(path)
         except InputError:
             pass  # an unreadable cache entry (an interrupted disk, an older format): retrain
-    model = _train_and_score(info, specs, seed)
+    model = _train_and_score(info, specs, seed, reporter or Reporter())
     if use_cache:
         model.save(path)
     return model
@@ -110,16 +114,24 @@ def describe_default_model(model: DirectionModel) -> str:
     return f"{model.method} trained on {model.trained_on}{score}"
 
 
-def _train_and_score(info: DirectionMethod, specs: tuple[str, ...], seed: int) -> DirectionModel:
+def _train_and_score(
+    info: DirectionMethod, specs: tuple[str, ...], seed: int, report: Reporter
+) -> DirectionModel:
     from qdcnn.direction.lane_data import load_lane_data
 
     assert info.grouping is not None
     config = PipelineConfig(seed=seed)
-    parts = [load_lane_data(spec, config, (info.grouping,), seed=seed) for spec in specs]
-    x = np.concatenate([p.features(info.grouping) for p in parts])
-    y = np.concatenate([p.y for p in parts])
-    model = train_direction_model(info, x, y, config, " + ".join(specs))
-    cv = cross_validate(lambda: info.estimator(config), x, y, folds=SCORE_FOLDS, gap=SCORE_GAP)
+    with report.progress(len(specs) + 2, f"built-in model {info.name}: train, score") as step:
+        parts = []
+        for spec in specs:
+            parts.append(load_lane_data(spec, config, (info.grouping,), seed=seed))
+            step()
+        x = np.concatenate([p.features(info.grouping) for p in parts])
+        y = np.concatenate([p.y for p in parts])
+        model = train_direction_model(info, x, y, config, " + ".join(specs))
+        step()
+        cv = cross_validate(lambda: info.estimator(config), x, y, folds=SCORE_FOLDS, gap=SCORE_GAP)
+        step()
     model.summary["cross_validation"] = {
         "folds": SCORE_FOLDS,
         "gap": SCORE_GAP,

@@ -133,7 +133,7 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
-        model = default_direction_model(spec.method, spec.seed)
+        model = default_direction_model(spec.method, spec.seed, reporter=report)
         report.note(f"no --model: the built-in model, {describe_default_model(model)}")
     listing = list_images(spec.paths)
     if not listing.images and not listing.missing:

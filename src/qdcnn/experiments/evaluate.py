@@ -277,35 +277,38 @@ def _evaluate_all(
     report: Reporter,
     executor: Any,
 ) -> None:
-    lane_methods = [m for m in methods if m.inputs == "lanes"]
-    if lane_methods:
-        lanes = _lane_data(spec, frames, lane_methods, report)
-        _add_failures(result, lanes.table.failures, report)
-        if lanes.table.camera is not None:
-            result.camera = lanes.table.camera
-            report.note(f"{frames.name}: {lanes.table.camera['description']}")
-            for note in lanes.table.camera["notes"]:
-                report.note(f"{frames.name}: {note}")
-        for m in lane_methods:
-            res = _evaluate_lane_method(spec, m, lanes, executor)
+    with report.progress(len(methods), f"methods on {frames.name}") as method_done:
+        lane_methods = [m for m in methods if m.inputs == "lanes"]
+        if lane_methods:
+            lanes = _lane_data(spec, frames, lane_methods, report)
+            _add_failures(result, lanes.table.failures, report)
+            if lanes.table.camera is not None:
+                result.camera = lanes.table.camera
+                report.note(f"{frames.name}: {lanes.table.camera['description']}")
+                for note in lanes.table.camera["notes"]:
+                    report.note(f"{frames.name}: {note}")
+            for m in lane_methods:
+                res = _evaluate_lane_method(spec, m, lanes, executor)
+                res.extra["labels"] = result.labels
+                result.results.append(res)
+                report.result(res.to_dict())
+                method_done()
+        for m in (m for m in methods if m.inputs == "frames"):
+            res, failures = evaluate_frames(
+                m,
+                frames,
+                frames.labels(spec.config.labels),
+                config=spec.config,
+                options=spec.training,
+                folds=spec.folds,
+                gap=spec.gap,
+                executor=executor,
+            )
+            _add_failures(result, failures, report)
             res.extra["labels"] = result.labels
             result.results.append(res)
             report.result(res.to_dict())
-    for m in (m for m in methods if m.inputs == "frames"):
-        res, failures = evaluate_frames(
-            m,
-            frames,
-            frames.labels(spec.config.labels),
-            config=spec.config,
-            options=spec.training,
-            folds=spec.folds,
-            gap=spec.gap,
-            executor=executor,
-        )
-        _add_failures(result, failures, report)
-        res.extra["labels"] = result.labels
-        result.results.append(res)
-        report.result(res.to_dict())
+            method_done()
 
 
 def label_summary(frames: FrameSet, config: PipelineConfig, report: Reporter) -> dict[str, Any]:

@@ -78,7 +78,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
-        model = default_direction_model(spec.method, spec.seed)
+        model = default_direction_model(spec.method, spec.seed, reporter=report)
         report.note(f"no --model: the built-in model, {describe_default_model(model)}")
     processor = LaneDirectionProcessor(model, seed=spec.seed)
     with ExitStack() as stack:

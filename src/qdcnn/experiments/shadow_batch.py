@@ -366,20 +366,26 @@ def train_shadows(
     spec: ShadowTrainingSpec, reporter: Reporter | None = None
 ) -> ShadowTrainingResult:
     """Train a UU-dagger shadow model on a shadow set and save it."""
-    from qdcnn.config import SHADOW_THRESHOLD_GRID
-    from qdcnn.vision.shadow_training import train_multi_shadow_model, train_shadow_model
-
     report = reporter or Reporter()
     images, masks, failures = load_shadow_set(spec.data)
     for f in failures:
         report.failure(f)
+    with report.progress(1, f"training a shadow model on {len(images)} images") as trained:
+        model = _fit_shadow_model(spec, images, masks)
+        trained()
+    path = model.save(spec.out)
+    return ShadowTrainingResult(model, Path(path), failures)
+
+
+def _fit_shadow_model(spec: ShadowTrainingSpec, images: Any, masks: Any) -> ShadowModel:
+    """The one-feature model (a threshold search if asked) or the multi-feature one."""
+    from qdcnn.config import SHADOW_THRESHOLD_GRID
+    from qdcnn.vision.shadow_training import train_multi_shadow_model, train_shadow_model
+
     cfg = ShadowConfig(feature=spec.features[0], shots=None)  # type: ignore[arg-type]
     if len(spec.features) == 1 and spec.centroids == 1:
         grid = SHADOW_THRESHOLD_GRID if spec.search_threshold else None
-        model = train_shadow_model(images, masks, cfg, thresholds=grid)
-    else:
-        model = train_multi_shadow_model(
-            images, masks, cfg, features=spec.features, n_centroids=spec.centroids, seed=spec.seed
-        )
-    path = model.save(spec.out)
-    return ShadowTrainingResult(model, Path(path), failures)
+        return train_shadow_model(images, masks, cfg, thresholds=grid)
+    return train_multi_shadow_model(
+        images, masks, cfg, features=spec.features, n_centroids=spec.centroids, seed=spec.seed
+    )

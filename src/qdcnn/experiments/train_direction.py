@@ -87,15 +87,17 @@ def train_direction(
         failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable
     for f in failures:
         report.failure(f)
-    model = train_direction_model(
-        method,
-        inputs,
-        y,
-        spec.config,
-        spec.data,
-        inner_folds=spec.inner_folds,
-        gap=spec.gap,
-        options=spec.training,
-    )
+    with report.progress(1, f"training {method.name} on {len(y)} frames") as trained:
+        model = train_direction_model(
+            method,
+            inputs,
+            y,
+            spec.config,
+            spec.data,
+            inner_folds=spec.inner_folds,
+            gap=spec.gap,
+            options=spec.training,
+        )
+        trained()
     path = model.save(spec.out)
     return TrainDirectionResult(model, path, failures)
