@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.table import Table
@@ -30,10 +30,37 @@ from qdcnn.errors import ParameterError, QdcnnError
 if TYPE_CHECKING:
     from qdcnn.config import PipelineConfig
     from qdcnn.direction.methods import TrainingOptions
+    from qdcnn.direction.protocol import MethodResult
     from qdcnn.experiments.detect_lanes import DetectLanesResult
     from qdcnn.experiments.evaluate import EvaluationResult
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
+DataListOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--data",
+        help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]; repeat for leave-one-out.",
+    ),
+]
+TrainOpt = Annotated[
+    list[str] | None,
+    typer.Option("--train", help="Training recording (repeatable); needs --test."),
+]
+TestOpt = Annotated[
+    list[str] | None,
+    typer.Option("--test", help="Test recording (repeatable), scored on its own."),
+]
+ProtocolOpt = Annotated[
+    str,
+    typer.Option(help="k-fold (inside one --data) | leave-one-out (each --data the test set)."),
+]
+SeedsOpt = Annotated[
+    int, typer.Option(help="Retrain every model with seeds SEED .. SEED+K-1; figures are means.")
+]
+PairedOpt = Annotated[
+    bool,
+    typer.Option(help="Balanced-accuracy difference of each method to the first, paired interval."),
+]
 InnerOpt = Annotated[
     int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
 ]
@@ -148,7 +175,7 @@ def training_options(
 
 
 def evaluate_cmd(
-    data: DataOpt,
+    data: DataListOpt = None,
     method: Annotated[
         str,
         typer.Option(
@@ -177,10 +204,16 @@ def evaluate_cmd(
     inner_lines: InnerOpt2 = False,
     track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
+    train: TrainOpt = None,
+    test: TestOpt = None,
+    protocol: ProtocolOpt = "k-fold",
+    seeds: SeedsOpt = 1,
+    paired: PairedOpt = False,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
-    """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
+    """Direction scores with intervals: contiguous folds inside one recording (the paper's
+    accuracy table), or trained on some recordings and tested on others."""
     from qdcnn.direction.methods import with_head
     from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
 
@@ -189,8 +222,9 @@ def evaluate_cmd(
         config = pipeline_config(
             lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
         )
+        one, loo = recordings(data or [], protocol)
         spec = EvaluationSpec(
-            data,
+            one,
             with_head(method, head),
             config,
             folds,
@@ -199,43 +233,140 @@ def evaluate_cmd(
             training_options(epochs, weights, threads, not as_json, context),
             use_cache=cache,
             scheduler=scheduler,
+            train=tuple(train or ()),
+            test=tuple(test or ()),
+            leave_one_out=loo,
+            seeds=seeds,
+            paired=paired,
         )
         result = run_evaluation(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
+    if as_json and result.comparisons:
+        emit({"comparisons": result.comparisons})
     if as_json and result.failures:
         emit({"summary": True, "failures": [f.to_dict() for f in result.failures]})
     elif not as_json:
-        out.print(_evaluation_table(result))
-        balance = ", ".join(f"{k} {v}" for k, v in result.labels["class_balance"].items())
-        out.print(
-            f"{result.labels['description']}; classes: {balance}", markup=False, soft_wrap=True
-        )
+        _print_evaluation(result)
     raise typer.Exit(result.exit_code)
+
+
+def recordings(data: list[str], protocol: str) -> tuple[str, tuple[str, ...]]:
+    """``--data`` as the k-fold recording, or the leave-one-out recordings."""
+    if protocol == "leave-one-out":
+        return "", tuple(data)
+    if protocol != "k-fold":
+        raise ParameterError("protocol", protocol, "'k-fold' or 'leave-one-out'")
+    if len(data) > 1:
+        raise ParameterError(
+            "data", ",".join(data), "one recording for k-fold (several: --protocol leave-one-out)"
+        )
+    return (data[0] if data else ""), ()
+
+
+#: The line under every table saying what the majority baseline is.
+MAJORITY_LINE = (
+    "majority: the training frames' most frequent class for every test frame; with contiguous "
+    "folds its accuracy can fall below chance, as that class may be rare in the test block"
+)
+
+
+def _print_evaluation(result: EvaluationResult) -> None:
+    out.print(_evaluation_table(result))
+    for line in _evaluation_lines(result):
+        out.print(line, markup=False, soft_wrap=True)
+    if result.comparisons:
+        out.print(_comparison_table(result))
+
+
+def _evaluation_lines(result: EvaluationResult) -> list[str]:
+    """What goes under the table: baselines, recordings, labels, notes."""
+    lines = [MAJORITY_LINE, "chance: balanced accuracy 1/3 (0.33) for any guess"]
+    if len(result.trained_on) == len(result.tested_on) > 1:  # leave-one-out
+        for train, test in zip(result.trained_on, result.tested_on, strict=True):
+            lines.append(f"tested on {test}, trained on {', '.join(train)}")
+    elif result.tested_on:
+        lines.append(f"trained on {', '.join(result.trained_on[0])}")
+        lines.append(f"tested on {', '.join(result.tested_on)} (each on its own)")
+    labels = result.labels if "description" not in result.labels else {"": result.labels}
+    for name, info in labels.items():
+        balance = ", ".join(f"{k} {v}" for k, v in info["class_balance"].items())
+        lines.append(f"{name + ': ' if name else ''}{info['description']}; classes: {balance}")
+    seen: set[str] = set()
+    for r in result.results:
+        for note in r.notes:
+            if note not in seen:
+                seen.add(note)
+                lines.append(f"note: {r.method} on {r.dataset}: {note}")
+    return lines
+
+
+def _comparison_table(result: EvaluationResult) -> Table:
+    table = Table(
+        "balanced accuracy: A - B [95 %]",
+        "test set",
+        title="paired differences on the same test frames (block bootstrap)",
+    )
+    for c in result.comparisons:
+        table.add_row(f"{c['a']} - {c['b']}: {c['text']}", c["dataset"])
+    return table
 
 
 def _evaluation_table(result: EvaluationResult) -> Table:
     p = result.protocol
+    cross = "folds" not in p
+    if cross:
+        title = f"{p['protocol']}: scores per test recording, 95 % block-bootstrap intervals"
+    else:
+        title = (
+            f"{result.dataset}: {result.n_frames} frames, {p['folds']} contiguous folds "
+            f"(gap {p['gap']}); scores pooled over test frames, 95 % block-bootstrap intervals"
+        )
+    columns = ["method", *(["test set"] if cross else [])]
     table = Table(
-        "method",
-        "accuracy",
-        "± std",
-        "majority",
-        "no lines",
-        "seconds",
-        title=f"{result.dataset}: {result.n_frames} frames, {p['folds']} contiguous folds "
-        f"(gap {p['gap']}); accuracy pooled over test frames",
+        *columns, "balanced accuracy", "accuracy", "macro-F1", "no lines", "seconds", title=title
     )
-    for r in result.results:
+    order = {name: i for i, name in enumerate(dict.fromkeys(r.dataset for r in result.results))}
+    done: set[str] = set()
+    for r in sorted(result.results, key=lambda r: order[r.dataset]):
+        where = [r.dataset] if cross else []
+        if r.dataset not in done:
+            done.add(r.dataset)
+            _baseline_rows(table, r, where)
         table.add_row(
             r.method,
-            f"{r.accuracy:.3f}",
-            f"{r.accuracy_std:.3f}",
-            f"{r.majority_baseline:.3f}",
+            *where,
+            _with_interval(r.balanced_accuracy, r.balanced_accuracy_ci),
+            _with_interval(r.accuracy, r.accuracy_ci),
+            f"{r.macro_f1:.2f}",
             str(r.frames_without_lines),
             f"{r.seconds:.1f}",
         )
     return table
+
+
+def _baseline_rows(table: Table, r: MethodResult, where: list[str]) -> None:
+    """The training majority and chance rows of ``r``'s test set."""
+    m = r.majority
+    table.add_row(
+        "majority (training)",
+        *where,
+        _with_interval(m.get("balanced_accuracy"), None),
+        _with_interval(m.get("accuracy", r.majority_baseline), None),
+        f"{m.get('macro_f1', 0.0):.2f}",
+        "",
+        "",
+    )
+    table.add_row("chance", *where, "0.33", "", "", "", "")
+
+
+def _with_interval(value: float | None, interval: dict[str, Any] | None) -> str:
+    """``0.71 [0.66, 0.76]``, the value alone without an interval, ``undefined`` for None."""
+    if value is None:
+        return "undefined"
+    if interval is None:
+        return f"{value:.2f}"
+    return f"{value:.2f} [{interval['low']:.2f}, {interval['high']:.2f}]"
 
 
 def train_direction_cmd(

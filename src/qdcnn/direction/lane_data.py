@@ -73,6 +73,7 @@ def load_lane_data(
     seed: int = 0,
     use_cache: bool = True,
     on_frame: Callable[[int], None] | None = None,
+    check_labels: bool = True,
 ) -> LaneData:
     """Frames, labels and lane features of ``data`` (a dataset spec or a loaded FrameSet).
 
@@ -80,7 +81,8 @@ def load_lane_data(
     ------
     InputError
         The dataset cannot be loaded, or its readable frames' labels hold fewer than two
-        classes (a constant guess would score 1.0).
+        classes (a constant guess would score 1.0); ``check_labels=False`` skips that
+        check (a test recording of one class is still scored, balanced accuracy undefined).
     """
     cfg = config or PipelineConfig()
     frames = (
@@ -92,5 +94,6 @@ def load_lane_data(
     table = compute_features(
         frames, cfg, tuple(sorted(set(groupings))), use_cache=use_cache, on_frame=on_frame
     )
-    check_labels_usable(labels[table.readable], source=frames.spec)
+    if check_labels:
+        check_labels_usable(labels[table.readable], source=frames.spec)
     return LaneData(frames, table, labels, cfg)

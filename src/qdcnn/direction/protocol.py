@@ -13,6 +13,10 @@ Scores (one definition everywhere)
     standard deviation of the per-fold accuracies. The *majority baseline* predicts, in
     each fold, the most frequent class of that fold's training frames, pooled the same way
     (:func:`majority_baseline`).
+    *balanced accuracy* (the main figure), macro-F1, per-class recall and the confusion
+    come from :func:`qdcnn.direction.scores.score` on the pooled test predictions in frame
+    order, with 95 % circular block-bootstrap intervals (:func:`score_runs`); with ``K``
+    seeds each figure is the mean over the seeds' runs on the same frames.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from sklearn.base import BaseEstimator, clone
-from sklearn.metrics import confusion_matrix, precision_recall_fscore_support
+from sklearn.metrics import precision_recall_fscore_support
 from sklearn.model_selection import GridSearchCV
 
 from qdcnn.data.labels import DIRECTIONS
@@ -33,6 +37,7 @@ from qdcnn.data.splits import ContiguousKFold, Split
 from qdcnn.errors import ParameterError
 
 __all__ = [
+    "RESAMPLES",
     "ContiguousKFold",
     "CrossValidation",
     "MethodResult",
@@ -40,10 +45,13 @@ __all__ = [
     "fit_with_search",
     "majority_baseline",
     "pooled_accuracy",
+    "score_runs",
     "summarise",
 ]
 
 _N_CLASSES = len(DIRECTIONS)
+#: Bootstrap resamples of every interval.
+RESAMPLES = 1000
 
 
 def fit_with_search(
@@ -88,6 +96,23 @@ class CrossValidation:
     chosen: list[dict[str, Any]]
     estimators: list[Any] = field(default_factory=list)
     seconds: float = 0.0
+    epochs_run: list[int] = field(default_factory=list)
+
+
+class FoldStore:
+    """Where finished folds are kept so an interrupted run resumes (no-op here).
+
+    :meth:`get` gives a fold's ``(predictions, chosen, epochs_run)`` or ``None``;
+    :meth:`put` keeps one. ``qdcnn.experiments.evaluate`` keeps them in the cache.
+    """
+
+    def get(self, fold: int | str) -> tuple[NDArray[np.int64], dict[str, Any], int] | None:
+        return None
+
+    def put(
+        self, fold: int | str, predictions: NDArray[np.int64], chosen: dict[str, Any], epochs: int
+    ) -> None:
+        return None
 
 
 def cross_validate(
@@ -101,6 +126,7 @@ def cross_validate(
     keep_estimators: bool = False,
     on_fold: Callable[[int], None] | None = None,
     executor: Any = None,
+    store: FoldStore | None = None,
 ) -> CrossValidation:
     """Train and test one method on each contiguous fold.
 
@@ -122,32 +148,45 @@ def cross_validate(
     executor : Executor, optional
         Where the folds run (:class:`qdcnn.runtime.scheduler.Executor`: this
         process, or workers of a Dask cluster); the results are the same either way.
+    store : FoldStore, optional
+        Folds already done are read from it and each new one is put in it as it ends;
+        their estimators are ``None``.
     """
     y = np.asarray(y, dtype=np.int64)
     splits = list(ContiguousKFold(folds, gap).split(y))
     x = np.asarray(X) if not isinstance(X, np.ndarray) else X
     t0 = time.perf_counter()
-    tasks = [(i, train, test) for i, (train, test) in enumerate(splits)]
+    keep = store or FoldStore()
     done: dict[int, tuple[NDArray[np.int64], dict[str, Any], Any]] = {}
+    epochs: dict[int, int] = {}
+    for i in range(len(splits)):
+        hit = keep.get(i)
+        if hit is not None:
+            done[i], epochs[i] = (hit[0], hit[1], None), hit[2]
+    tasks = [(i, train, test) for i, (train, test) in enumerate(splits) if i not in done]
+
+    def finish(i: int, outcome: tuple[NDArray[np.int64], dict[str, Any], Any]) -> None:
+        done[i], epochs[i] = outcome, len(getattr(outcome[2], "history_", []))
+        keep.put(i, outcome[0], outcome[1], epochs[i])
+        if on_fold:
+            on_fold(i)
+
     if executor is None:
         for task in tasks:
-            done[task[0]] = _fit_fold(task, build, x, y, inner_folds, gap)
-            if on_fold:
-                on_fold(task[0])
+            finish(task[0], _fit_fold(task, build, x, y, inner_folds, gap))
     else:
         for task, outcome in executor.map_unordered(
             _fit_fold, tasks, build, x, y, inner_folds, gap
         ):
             if hasattr(outcome, "error") and hasattr(outcome, "kind"):  # a TaskFailure
                 raise ParameterError("fold", task[0] + 1, f"a fold that trains ({outcome.error})")
-            done[task[0]] = outcome
-            if on_fold:
-                on_fold(task[0])
+            finish(task[0], outcome)
     out = CrossValidation(splits, [], [])
     for i in range(len(splits)):
         predictions, chosen, fitted = done[i]
-        out.predictions.append(predictions)
+        out.predictions.append(np.asarray(predictions, dtype=np.int64))
         out.chosen.append(chosen)
+        out.epochs_run.append(epochs[i])
         if keep_estimators:
             out.estimators.append(fitted)
     out.seconds = time.perf_counter() - t0
@@ -193,7 +232,14 @@ def majority_baseline(y: NDArray[np.int64], splits: Sequence[Split]) -> float:
 
 @dataclass
 class MethodResult:
-    """Cross-validated accuracy of one method on one dataset (the ``--json`` object)."""
+    """Scores of one method on one set of test frames (the ``--json`` object).
+
+    ``accuracy``, ``balanced_accuracy`` (the main figure), ``macro_f1``, ``per_class``
+    and ``confusion`` are pooled over the test frames (summed over seeds for the
+    confusion, averaged over seeds for the rest); ``*_ci`` are their 95 % block-bootstrap
+    intervals; ``predictions`` holds, per seed, the prediction of every test frame in
+    frame order and ``test_labels`` their labels (for paired comparisons).
+    """
 
     method: str
     dataset: str
@@ -207,6 +253,15 @@ class MethodResult:
     seconds: float
     fold_accuracies: list[float]
     extra: dict[str, Any]
+    balanced_accuracy: float | None = None
+    macro_f1: float = 0.0
+    accuracy_ci: dict[str, Any] | None = None
+    balanced_accuracy_ci: dict[str, Any] | None = None
+    majority: dict[str, Any] = field(default_factory=dict)
+    seeds: list[int] = field(default_factory=lambda: [0])
+    notes: list[str] = field(default_factory=list)
+    predictions: list[list[int]] = field(default_factory=list)
+    test_labels: list[int] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -215,33 +270,89 @@ class MethodResult:
             "n": self.n,
             "accuracy": self.accuracy,
             "accuracy_std": self.accuracy_std,
+            "accuracy_ci": self.accuracy_ci,
+            "balanced_accuracy": self.balanced_accuracy,
+            "balanced_accuracy_ci": self.balanced_accuracy_ci,
+            "macro_f1": self.macro_f1,
             "per_class": self.per_class,
             "confusion": self.confusion,
             "majority_baseline": self.majority_baseline,
+            "majority": self.majority,
+            "chance_balanced_accuracy": 1 / _N_CLASSES,
             "frames_without_lines": self.frames_without_lines,
             "seconds": self.seconds,
             "fold_accuracies": self.fold_accuracies,
+            "seeds": self.seeds,
+            "notes": self.notes,
             **self.extra,
+            "test_labels": self.test_labels,
+            "predictions": self.predictions,
         }
 
 
-def summarise(
-    method: str,
-    dataset: str,
-    y: NDArray[np.int64],
-    cv: CrossValidation,
+def score_runs(
+    truth: NDArray[np.int64],
+    runs: NDArray[np.int64],
+    majority: NDArray[np.int64],
     *,
-    frames_without_lines: int = 0,
-    extra: Mapping[str, Any] | None = None,
-) -> MethodResult:
-    """Fold predictions -> pooled accuracy, fold spread, per-class scores, pooled confusion."""
-    accs = [
-        float(np.mean(p == y[test])) for (_, test), p in zip(cv.splits, cv.predictions, strict=True)
-    ]
-    truth = np.concatenate([y[test] for _, test in cv.splits])
-    pred = np.concatenate(cv.predictions)
+    seed: int = 0,
+    resamples: int = RESAMPLES,
+) -> dict[str, Any]:
+    """Scores of ``runs`` ``(K, N)`` (seeds) on labels ``truth`` ``(N,)`` in frame order.
+
+    Returns the :class:`MethodResult` fields ``accuracy``, ``balanced_accuracy``,
+    ``macro_f1``, ``per_class``, ``confusion``, ``accuracy_ci``,
+    ``balanced_accuracy_ci``, ``majority`` (the same scores of the constant ``majority``
+    predictions) and ``notes`` (why a figure or interval is missing).
+    """
+    from qdcnn.direction.scores import score
+
+    runs = np.atleast_2d(np.asarray(runs, dtype=np.int64))
+    k = runs.shape[0]
+    each = [score(truth, run) for run in runs]
+    pooled = score(np.tile(truth, k), runs.ravel())
+    notes = [f"balanced accuracy is undefined: {pooled.undefined}"] if pooled.undefined else []
+    intervals, why = _intervals(truth, runs, seed, resamples, pooled.undefined is None)
+    notes += why
+    majority_scores = score(truth, majority)
+    return {
+        "accuracy": pooled.accuracy,
+        "balanced_accuracy": pooled.balanced_accuracy,
+        "macro_f1": float(np.mean([s.macro_f1 for s in each])),
+        "per_class": _per_class(np.tile(truth, k), runs.ravel()),
+        "confusion": [list(row) for row in pooled.confusion],
+        **intervals,
+        "majority": {
+            "what": "the training frames' most frequent class, predicted for every test frame",
+            "accuracy": majority_scores.accuracy,
+            "balanced_accuracy": majority_scores.balanced_accuracy,
+            "macro_f1": majority_scores.macro_f1,
+        },
+        "notes": notes,
+    }
+
+
+def _intervals(
+    truth: NDArray[np.int64], runs: NDArray[np.int64], seed: int, resamples: int, defined: bool
+) -> tuple[dict[str, Any], list[str]]:
+    """95 % block-bootstrap intervals of accuracy and balanced accuracy (``None`` if not)."""
+    from qdcnn.direction.scores import block_bootstrap
+    from qdcnn.errors import InputError
+
+    out: dict[str, Any] = {"accuracy_ci": None, "balanced_accuracy_ci": None}
+    metrics = ("accuracy", "balanced_accuracy") if defined else ("accuracy",)
+    try:
+        for metric in metrics:
+            iv = block_bootstrap(truth, runs, metric, resamples=resamples, seed=seed)
+            out[f"{metric}_ci"] = iv.to_dict()
+    except InputError as err:
+        return out, [f"no interval: {err}"]
+    return out, []
+
+
+def _per_class(truth: NDArray[np.int64], pred: NDArray[np.int64]) -> dict[str, dict[str, float]]:
     p, r, f, s = precision_recall_fscore_support(truth, pred, labels=[0, 1, 2], zero_division=0)
-    per_class = {
+    return {
         name: {
             "precision": float(p[i]),
             "recall": float(r[i]),
@@ -250,17 +361,60 @@ def summarise(
         }
         for i, name in enumerate(DIRECTIONS)
     }
+
+
+def summarise(
+    method: str,
+    dataset: str,
+    y: NDArray[np.int64],
+    cv: CrossValidation | Sequence[CrossValidation],
+    *,
+    frames_without_lines: int = 0,
+    extra: Mapping[str, Any] | None = None,
+    seeds: Sequence[int] = (0,),
+) -> MethodResult:
+    """Fold predictions -> pooled scores with intervals, fold spread, pooled confusion.
+
+    ``cv`` is one cross-validation, or one per seed of ``seeds`` (same splits); the
+    first seed also seeds the bootstrap.
+    """
+    runs = [cv] if isinstance(cv, CrossValidation) else list(cv)
+    splits = runs[0].splits
+    accs = np.mean(
+        [
+            [
+                float(np.mean(p == y[test]))
+                for (_, test), p in zip(splits, r.predictions, strict=True)
+            ]
+            for r in runs
+        ],
+        axis=0,
+    ).tolist()
+    truth = np.concatenate([y[test] for _, test in splits])
+    order = np.argsort(np.concatenate([test for _, test in splits]), kind="stable")
+    preds = np.stack([np.concatenate(r.predictions)[order] for r in runs])
+    majority = np.concatenate(
+        [
+            np.full(len(test), np.bincount(y[train], minlength=_N_CLASSES).argmax())
+            for train, test in splits
+        ]
+    )[order]
+    scored = score_runs(truth[order], preds, majority, seed=seeds[0])
     return MethodResult(
         method,
         dataset,
         int(truth.size),
-        pooled_accuracy(y, cv.splits, cv.predictions),
+        float(np.mean([pooled_accuracy(y, splits, r.predictions) for r in runs])),
         float(np.std(accs)),
-        per_class,
-        confusion_matrix(truth, pred, labels=[0, 1, 2]).tolist(),
-        majority_baseline(y, cv.splits),
+        scored.pop("per_class"),
+        scored.pop("confusion"),
+        majority_baseline(y, splits),
         frames_without_lines,
-        cv.seconds,
+        sum(r.seconds for r in runs),
         accs,
         dict(extra or {}),
+        seeds=list(seeds),
+        predictions=preds.tolist(),
+        test_labels=truth[order].tolist(),
+        **{k: v for k, v in scored.items() if k != "accuracy"},
     )

@@ -231,8 +231,10 @@ def block_bootstrap(
 
     Parameters
     ----------
-    y_true, y_pred : array_like of int, shape (N,)
-        Labels and predictions, frames in recording order (pooled contiguous folds).
+    y_true, y_pred : array_like of int, shape (N,) and (N,) or (K, N)
+        Labels and predictions, frames in recording order (pooled contiguous folds);
+        ``K`` rows are ``K`` runs (seeds) of one method: each resample averages the metric
+        over the runs on the same resampled frames.
     metric : {"accuracy", "balanced_accuracy", "macro_f1"}
         The score.
     block : int, optional
@@ -257,7 +259,7 @@ def block_bootstrap(
     >>> format_with_interval(score(y, p).balanced_accuracy, iv), iv.block
     ('0.70 [0.62, 0.78]', 25)
     """
-    truth, pred = _check_pair(y_true, y_pred)
+    truth, pred = _check_runs(y_true, y_pred)
     return _bootstrap(truth, (pred,), metric, block, min_block, resamples, seed, level)[1]
 
 
@@ -277,7 +279,8 @@ def paired_difference(
 
     Both methods are scored on the same resampled frames, so what they share (hard
     bends, easy straights) cancels. Parameters are those of :func:`block_bootstrap`; the
-    automatic block length follows the per-frame difference of the two methods.
+    automatic block length follows the per-frame difference of the two methods. Each
+    prediction may be ``(K, N)``: ``K`` runs (seeds), the metric averaged over them.
 
     Examples
     --------
@@ -292,8 +295,8 @@ def paired_difference(
     >>> format_with_interval(d.value, d.interval)
     '0.04 [-0.01, 0.10]'
     """
-    truth, a = _check_pair(y_true, pred_a)
-    _, b = _check_pair(y_true, pred_b, "pred_b")
+    truth, a = _check_runs(y_true, pred_a, "pred_a")
+    _, b = _check_runs(y_true, pred_b, "pred_b")
     value, interval = _bootstrap(truth, (a, b), metric, block, min_block, resamples, seed, level)
     return Difference(metric, value, interval)
 
@@ -311,16 +314,25 @@ def _bootstrap(
     """Point value and interval of ``metric`` of ``preds[0]`` (minus that of ``preds[1]``)."""
     check_choice("metric", metric, METRICS)
     _check_defined(truth, metric)
-    series = _first_minus_second([_influence(truth, p, metric) for p in preds])
+    series = _first_minus_second([_run_mean(_influence, truth, p, metric) for p in preds])
     block = _resolve_block(block, min_block, truth.size, series)
     rng = np.random.default_rng(check_seed("seed", seed))
     resamples = check_int("resamples", resamples, 10, 10**6)
     idx = _resample_indices(rng, truth.size, block, resamples)
-    point = float(_first_minus_second([_metric_values(truth, p, metric, None) for p in preds])[0])
-    values = _first_minus_second([_metric_values(truth, p, metric, idx) for p in preds])
+    point = float(
+        _first_minus_second([_run_mean(_metric_values, truth, p, metric, None) for p in preds])[0]
+    )
+    values = _first_minus_second([_run_mean(_metric_values, truth, p, metric, idx) for p in preds])
     bounds = (0.0, 1.0) if len(preds) == 1 else (-1.0, 1.0)
     low, high = _widened_percentile(point, values, truth.size, block, level, bounds)
     return point, Interval(low, high, resamples, block, METHOD, level)
+
+
+def _run_mean(
+    f: Any, truth: NDArray[np.int64], runs: NDArray[np.int64], *args: Any
+) -> NDArray[np.float64]:
+    """``f(truth, run, *args)`` averaged over the runs (rows) of ``runs`` ``(K, N)``."""
+    return np.mean([f(truth, run, *args) for run in runs], axis=0)
 
 
 def _first_minus_second(arrays: list[NDArray[np.float64]]) -> NDArray[np.float64]:
@@ -388,6 +400,17 @@ def _check_pair(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     truth = _labels("y_true", y_true, int(np.size(y_true)))
     return truth, _labels(pred_name, y_pred, truth.size)
+
+
+def _check_runs(
+    y_true: ArrayLike, y_pred: ArrayLike, pred_name: str = "y_pred"
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Labels ``(N,)`` and predictions as runs ``(K, N)`` (one row for ``(N,)``)."""
+    truth = _labels("y_true", y_true, int(np.size(y_true)))
+    pred = np.asarray(y_pred)
+    if pred.ndim == 2 and pred.shape[0] >= 1:
+        return truth, np.stack([_labels(pred_name, row, truth.size) for row in pred])
+    return truth, _labels(pred_name, pred, truth.size)[None, :]
 
 
 def _labels(name: str, values: ArrayLike, n: int) -> NDArray[np.int64]:

@@ -9,7 +9,8 @@ the readable frames; frame methods (CNNs) read the frames themselves.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import hashlib
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -29,11 +30,14 @@ from qdcnn.direction.methods import (
     select_methods,
 )
 from qdcnn.direction.protocol import (
+    RESAMPLES,
     ContiguousKFold,
     MethodResult,
     cross_validate,
     summarise,
 )
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.experiments.result_cache import UnitStore, unit_key
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
@@ -57,26 +61,46 @@ def evaluate_features(
     inner_folds: int = 3,
     frames_without_lines: int = 0,
     executor: Any = None,
+    seeds: int = 1,
+    use_cache: bool = False,
 ) -> MethodResult:
     """Cross-validate one lane method on precomputed lane features ``X`` with labels ``y``.
 
     ``executor`` (:class:`~qdcnn.runtime.scheduler.Executor`) runs the folds on a
-    Dask cluster; the result is the same as in this process.
+    Dask cluster; the result is the same as in this process. ``seeds`` runs every fold
+    with the config's seed and the ``seeds - 1`` after it (one run for a method without
+    randomness); ``use_cache`` keeps each finished fold in the cache, so a stopped run
+    resumes (:mod:`qdcnn.experiments.result_cache`).
     """
     m = get_method(method) if isinstance(method, str) else method
     cfg = config or PipelineConfig()
     check_labels_usable(y, source=dataset)
-    cv = cross_validate(
-        _Build(m, cfg), X, y, folds=folds, gap=gap, inner_folds=inner_folds, executor=executor
-    )
-    return summarise(
+    run_seeds, notes = method_seeds(m, cfg, None, seeds)
+    protocol = {"folds": folds, "gap": gap, "inner_folds": inner_folds}
+    cvs = [
+        cross_validate(
+            _Build(m, replace(cfg, seed=seed)),
+            X,
+            y,
+            folds=folds,
+            gap=gap,
+            inner_folds=inner_folds,
+            executor=executor,
+            store=fold_store(m, replace(cfg, seed=seed), None, protocol, X, y, use_cache),
+        )
+        for seed in run_seeds
+    ]
+    result = summarise(
         m.name,
         dataset,
         np.asarray(y, dtype=np.int64),
-        cv,
+        cvs,
         frames_without_lines=frames_without_lines,
-        extra={"chosen_hyperparameters": cv.chosen, "folds": folds, "gap": gap},
+        extra={"chosen_hyperparameters": cvs[0].chosen, "folds": folds, "gap": gap},
+        seeds=run_seeds,
     )
+    result.notes[:0] = notes
+    return result
 
 
 def evaluate_frames(
@@ -89,11 +113,14 @@ def evaluate_frames(
     folds: int = 5,
     gap: int = 5,
     executor: Any = None,
+    seeds: int = 1,
+    use_cache: bool = False,
 ) -> tuple[MethodResult, list[Failure]]:
     """Cross-validate one frame method (a CNN) on the readable frames of ``frames``.
 
     Each fold trains a fresh estimator on the training frames (its early stopping
     validates on frames of those, never on the test block) and predicts the test block.
+    ``seeds`` and ``use_cache`` as in :func:`evaluate_features`.
 
     Returns
     -------
@@ -108,25 +135,103 @@ def evaluate_frames(
     keep = np.flatnonzero(readable)
     y = np.asarray(labels, dtype=np.int64)[keep]
     check_labels_usable(y, source=frames.spec)
-    cv = cross_validate(
-        _Build(m, cfg, opts),
-        images[keep],
-        y,
-        folds=folds,
-        gap=gap,
-        inner_folds=0,
-        keep_estimators=True,
-        executor=executor,
-    )
+    run_seeds, notes = method_seeds(m, cfg, opts, seeds)
+    protocol = {"folds": folds, "gap": gap, "inner_folds": 0}
+    x = images[keep]
+    cvs = [
+        cross_validate(
+            _Build(m, replace(cfg, seed=seed), opts),
+            x,
+            y,
+            folds=folds,
+            gap=gap,
+            inner_folds=0,
+            executor=executor,
+            store=fold_store(m, replace(cfg, seed=seed), opts, protocol, x, y, use_cache),
+        )
+        for seed in run_seeds
+    ]
     extra: dict[str, Any] = {
         "folds": folds,
         "gap": gap,
         "epochs": opts.epochs,
         "weights": None if opts.weights is None else str(opts.weights),
-        "epochs_run": [len(getattr(e, "history_", [])) for e in cv.estimators],
-        "settings": _settings(cv.estimators[-1]) if cv.estimators else {},
+        "epochs_run": cvs[0].epochs_run,
+        "settings": _settings(m.estimator(cfg, opts)[0]),
     }
-    return summarise(m.name, frames.name, y, cv, extra=extra), failures
+    result = summarise(m.name, frames.name, y, cvs, extra=extra, seeds=run_seeds)
+    result.notes[:0] = notes
+    return result, failures
+
+
+def method_seeds(
+    m: DirectionMethod, config: PipelineConfig, options: TrainingOptions | None, seeds: int
+) -> tuple[list[int], list[str]]:
+    """The seeds ``m`` runs with (``config.seed`` and the ``seeds - 1`` after it), and a note
+    when the method has no randomness (then one run: more seeds would repeat it)."""
+    check_int("seeds", seeds, 1, 1000)
+    if seeds == 1:
+        return [config.seed], []
+    if not seed_matters(m, config, options):
+        return [config.seed], [f"{m.name} has no randomness: seeds do not apply (one run)"]
+    return [config.seed + k for k in range(seeds)], []
+
+
+def seed_matters(
+    m: DirectionMethod, config: PipelineConfig, options: TrainingOptions | None
+) -> bool:
+    """Whether ``m``'s estimator changes with the seed.
+
+    Its parameters are compared under two seeds; the UU-dagger rule uses its seed only
+    for shot sampling, so with exact probabilities (``shots=None``) it is deterministic.
+    """
+    a = m.estimator(config, options)[0].get_params()
+    b = m.estimator(replace(config, seed=config.seed + 1), options)[0].get_params()
+    differ = {k for k in a if repr(a[k]) != repr(b.get(k))}
+    if differ == {"seed"} and m.kind == "uu" and a.get("shots") is None:
+        return False
+    return bool(differ)
+
+
+def fold_store(
+    m: DirectionMethod,
+    config: PipelineConfig,
+    options: TrainingOptions | None,
+    protocol: dict[str, Any],
+    X: NDArray[Any],
+    y: NDArray[np.int64],
+    use_cache: bool,
+) -> UnitStore:
+    """Where the folds of ``m`` on ``(X, y)`` with ``config`` (and its seed) are kept."""
+    key = unit_key(
+        kind="k-fold",
+        method=m.name,
+        config=config.to_dict(),
+        options=None if options is None else options_key(options),
+        protocol=protocol,
+        data=array_digest(X, y),
+    )
+    return UnitStore(key, use_cache)
+
+
+def options_key(options: TrainingOptions) -> dict[str, Any]:
+    """The training options that change a result (not threads or progress)."""
+    return {
+        "epochs": options.epochs,
+        "weights": None if options.weights is None else str(options.weights),
+        "context": options.context,
+        "params": {k: repr(v) for k, v in options.params.items()},
+    }
+
+
+def array_digest(*arrays: NDArray[Any]) -> str:
+    """A hash of arrays' shapes, types and bytes (the data part of a unit's key)."""
+    h = hashlib.sha256()
+    for a in arrays:
+        c = np.ascontiguousarray(a)
+        h.update(f"{c.shape}{c.dtype}".encode())
+        h.update(c.tobytes())
+    return h.hexdigest()[:32]
 
 
 @dataclass(frozen=True)
@@ -157,7 +262,8 @@ class EvaluationSpec:
     Attributes
     ----------
     data : str
-        Dataset spec (``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``).
+        Dataset spec (``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``) of the
+        k-fold protocol (``""`` with ``train``/``test`` or ``leave_one_out``).
     methods : str
         A registered method, a comma list, or ``"all"``.
     config : PipelineConfig
@@ -173,6 +279,15 @@ class EvaluationSpec:
     scheduler : str or None
         Where the folds run: ``None`` (this process), ``local:N`` or ``tcp://HOST:PORT``
         (:class:`~qdcnn.runtime.scheduler.Executor`, the ``dask`` extra).
+    train, test : tuple of str
+        Cross-recording protocol: train on all ``train`` recordings together, score every
+        ``test`` recording (:mod:`qdcnn.experiments.evaluate_cross`).
+    leave_one_out : tuple of str
+        Each recording the test set in turn, trained on the others.
+    seeds : int
+        Runs per model: the config's seed and the ``seeds - 1`` after it.
+    paired : bool
+        Compare each method after the first with the first on the same test frames.
     """
 
     data: str
@@ -186,12 +301,37 @@ class EvaluationSpec:
     has_torch: bool | None = None
     has_gpu: bool | None = None
     scheduler: str | None = None
+    train: tuple[str, ...] = ()
+    test: tuple[str, ...] = ()
+    leave_one_out: tuple[str, ...] = ()
+    seeds: int = 1
+    paired: bool = False
 
     def __post_init__(self) -> None:
         check_int("folds", self.folds, 2, 10_000)
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        check_int("seeds", self.seeds, 1, 1000)
+        if bool(self.train) != bool(self.test):
+            raise ParameterError(
+                "test" if self.train else "train", "none", "given with --train/--test"
+            )
+        if self.leave_one_out and len(set(self.leave_one_out)) < 2:
+            raise ParameterError(
+                "data", ",".join(self.leave_one_out), "two recordings or more for leave-one-out"
+            )
+        if sum(map(bool, (self.data, self.train, self.leave_one_out))) != 1:
+            raise ParameterError(
+                "data", self.data or "none", "one of --data, --train/--test or leave-one-out"
+            )
+
+    def recording_splits(self) -> list[tuple[tuple[str, ...], tuple[str, ...]]]:
+        """``(training specs, test specs)`` of the cross-recording protocols (empty: k-fold)."""
+        if self.train:
+            return [(self.train, self.test)]
+        recs = self.leave_one_out
+        return [(tuple(r for r in recs if r != t), (t,)) for t in recs]
 
 
 @dataclass
@@ -206,6 +346,9 @@ class EvaluationResult:
     notes: list[str] = field(default_factory=list)
     labels: dict[str, Any] = field(default_factory=dict)
     camera: dict[str, Any] | None = None
+    comparisons: list[dict[str, Any]] = field(default_factory=list)
+    trained_on: list[list[str]] = field(default_factory=list)
+    tested_on: list[str] = field(default_factory=list)
 
     @property
     def exit_code(self) -> int:
@@ -222,6 +365,9 @@ class EvaluationResult:
             "notes": self.notes,
             "labels": self.labels,
             "camera": self.camera,
+            "comparisons": self.comparisons,
+            "trained_on": self.trained_on,
+            "tested_on": self.tested_on,
         }
 
 
@@ -235,6 +381,23 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
     )
     for note in notes:
         report.note(note)
+    if spec.recording_splits():
+        from qdcnn.experiments.evaluate_cross import run_cross_evaluation
+
+        result = run_cross_evaluation(spec, methods, report)
+    else:
+        result = _run_k_fold(spec, methods, report)
+    result.notes[:0] = notes
+    result.comparisons = paired_comparisons(result.results, spec.paired, spec.config.seed)
+    for c in result.comparisons:
+        report.note(f"{c['a']} - {c['b']} on {c['dataset']}: {c['text']}")
+    return result
+
+
+def _run_k_fold(
+    spec: EvaluationSpec, methods: list[DirectionMethod], report: Reporter
+) -> EvaluationResult:
+    """Contiguous folds inside the one recording ``spec.data``."""
     frames = load_frameset(
         spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
     )
@@ -247,14 +410,61 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
             "gap": spec.gap,
             "inner_folds": spec.inner_folds,
             "scheduler": spec.scheduler,
+            "seeds": spec.seeds,
         },
-        notes=notes,
     )
     _add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
     result.labels = label_summary(frames, spec.config, report)
     with executor_for(spec.scheduler) as executor:
         _evaluate_all(spec, frames, methods, result, report, executor)
     return result
+
+
+def paired_comparisons(
+    results: list[MethodResult], paired: bool, seed: int
+) -> list[dict[str, Any]]:
+    """Balanced-accuracy differences on the same test frames, with paired intervals.
+
+    With ``paired``, each method after the first against the first; always each hybrid
+    against its classical twin when both were evaluated. One group per test set.
+    """
+    from qdcnn.models.specs import hybrid_of
+
+    out: list[dict[str, Any]] = []
+    groups: dict[tuple[str, str], list[MethodResult]] = {}
+    for r in results:
+        groups.setdefault((r.dataset, repr(r.extra.get("trained_on"))), []).append(r)
+    for group in groups.values():
+        by_name = {r.method: r for r in group}
+        pairs = [(r, group[0]) for r in group[1:]] if paired else []
+        for r in group:
+            h = hybrid_of(r.method)
+            twin = by_name.get(f"{r.method}-classical")
+            if h is not None and h.name == r.method and twin is not None:
+                pairs.append((r, twin))
+        seen: set[tuple[str, str]] = set()
+        for a, b in pairs:
+            if (a.method, b.method) not in seen:
+                seen.add((a.method, b.method))
+                out.append(_difference(a, b, seed))
+    return out
+
+
+def _difference(a: MethodResult, b: MethodResult, seed: int) -> dict[str, Any]:
+    """``a``'s balanced accuracy minus ``b``'s on their common test frames (or why not)."""
+    from qdcnn.direction.scores import format_with_interval, paired_difference
+
+    row: dict[str, Any] = {"a": a.method, "b": b.method, "dataset": a.dataset}
+    if a.test_labels != b.test_labels:
+        return {**row, "value": None, "interval": None, "text": "not the same test frames"}
+    try:
+        d = paired_difference(
+            a.test_labels, a.predictions, b.predictions, resamples=RESAMPLES, seed=seed
+        )
+    except InputError as err:
+        return {**row, "value": None, "interval": None, "text": f"no comparison: {err}"}
+    text = format_with_interval(d.value, d.interval)
+    return {**row, **d.to_dict(), "text": text if d.value < 0 else "+" + text}
 
 
 def executor_for(scheduler: str | None) -> Any:
@@ -303,6 +513,8 @@ def _evaluate_all(
                 folds=spec.folds,
                 gap=spec.gap,
                 executor=executor,
+                seeds=spec.seeds,
+                use_cache=spec.use_cache,
             )
             _add_failures(result, failures, report)
             res.extra["labels"] = result.labels
@@ -354,6 +566,8 @@ def _evaluate_lane_method(
         inner_folds=spec.inner_folds,
         frames_without_lines=lanes.table.frames_without_lines(m.grouping),
         executor=executor,
+        seeds=spec.seeds,
+        use_cache=spec.use_cache,
     )
     res.extra["pipeline_ms_per_frame"] = 1e3 * lanes.table.seconds_per_frame
     return res
