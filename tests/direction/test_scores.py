@@ -249,3 +249,17 @@ def test_five_thousand_frames_thousand_resamples_is_fast() -> None:
         block_bootstrap(y, p, "accuracy", resamples=1000)
         seconds.append(time.perf_counter() - start)
     assert min(seconds) < 1.0
+
+
+def test_runs_of_several_seeds_average_on_the_same_resampled_frames() -> None:
+    rng = np.random.default_rng(3)
+    y = np.repeat(rng.integers(0, 3, 30), 10)
+    p = np.where(rng.random(300) < 0.7, y, (y + 1) % 3)
+    one = block_bootstrap(y, p, "balanced_accuracy", seed=2)
+    assert block_bootstrap(y, np.stack([p, p]), "balanced_accuracy", seed=2) == one
+    q = np.where(rng.random(300) < 0.5, y, (y + 2) % 3)
+    both = block_bootstrap(y, np.stack([p, q]), "accuracy", seed=2)
+    mean = (score(y, p).accuracy + score(y, q).accuracy) / 2
+    assert both.low <= mean <= both.high
+    d = paired_difference(y, np.stack([p, q]), p, "accuracy", seed=2)
+    assert d.value == pytest.approx(mean - score(y, p).accuracy)

@@ -1,0 +1,185 @@
+"""Cross-recording evaluation, seeds, paired differences and resuming (issue 19)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qdcnn.config import PipelineConfig
+from qdcnn.data.images import write_image
+from qdcnn.data.synthetic import generate_drive
+from qdcnn.direction.methods import get_method
+from qdcnn.direction.scores import score
+from qdcnn.errors import InputError, ParameterError
+from qdcnn.experiments.evaluate import (
+    EvaluationSpec,
+    method_seeds,
+    run_evaluation,
+    seed_matters,
+)
+from qdcnn.runtime.reporting import Collector
+
+TRACK1, TRACK2, RAIN = "synthetic:track1:150", "synthetic:track2:150", "synthetic:rain:120"
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+
+
+def test_train_on_one_recording_and_score_each_test_recording() -> None:
+    spec = EvaluationSpec(
+        "", "image-split-uu,kmeans-uu", train=(TRACK2,), test=(TRACK1, RAIN), seeds=2
+    )
+    result = run_evaluation(spec, Collector())
+    assert [(r.method, r.dataset) for r in result.results] == [
+        ("image-split-uu", "synthetic-track1"),
+        ("image-split-uu", "synthetic-rain"),
+        ("kmeans-uu", "synthetic-track1"),
+        ("kmeans-uu", "synthetic-rain"),
+    ]
+    assert result.trained_on == [["synthetic-track2"]]
+    assert result.tested_on == ["synthetic-track1", "synthetic-rain"]
+    for r in result.results:
+        d = r.to_dict()
+        assert d["trained_on"] == ["synthetic-track2"] and d["tested_on"] == r.dataset
+        assert r.seeds == [0, 1] and np.shape(r.predictions) == (2, r.n)
+        # the figures are the means over the two seeds' runs on the same frames
+        each = [score(r.test_labels, p) for p in r.predictions]
+        assert r.accuracy == pytest.approx(np.mean([s.accuracy for s in each]))
+        assert r.balanced_accuracy == pytest.approx(np.mean([s.balanced_accuracy for s in each]))
+        assert r.macro_f1 == pytest.approx(np.mean([s.macro_f1 for s in each]))
+        ci = d["balanced_accuracy_ci"]
+        assert ci["low"] <= r.balanced_accuracy <= ci["high"] and ci["resamples"] == 1000
+        assert d["accuracy_ci"]["block"] >= 11
+        assert d["majority"]["balanced_accuracy"] == pytest.approx(1 / 3)
+    json.dumps(result.to_dict())
+
+
+def test_a_test_recording_that_overlaps_the_training_set_is_refused() -> None:
+    spec = EvaluationSpec("", "image-split-uu", train=(TRACK2,), test=("synthetic:track2:60",))
+    with pytest.raises(InputError, match="shares 60 of its 60 frames with the training set"):
+        run_evaluation(spec, Collector())
+
+
+def test_leave_one_out_tests_each_recording_once() -> None:
+    recs = ("synthetic:track1:100", "synthetic:track2:100", "synthetic:rain:100")
+    result = run_evaluation(EvaluationSpec("", "kmeans-uu", leave_one_out=recs), Collector())
+    assert result.tested_on == ["synthetic-track1", "synthetic-track2", "synthetic-rain"]
+    assert result.trained_on == [
+        ["synthetic-track2", "synthetic-rain"],
+        ["synthetic-track1", "synthetic-rain"],
+        ["synthetic-track1", "synthetic-track2"],
+    ]
+    assert [r.dataset for r in result.results] == result.tested_on
+    assert result.protocol["protocol"] == "leave-one-out"
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"seeds": 0}, "seeds=0 is invalid"),
+        ({"train": (TRACK1,)}, "test='none' is invalid"),
+        ({"leave_one_out": (TRACK1,)}, "two recordings or more"),
+    ],
+)
+def test_bad_protocols_are_refused(changes: dict, message: str) -> None:
+    with pytest.raises(ParameterError, match=message):
+        EvaluationSpec("", **changes)
+
+
+def test_paired_differences_are_on_the_same_frames() -> None:
+    spec = EvaluationSpec(
+        "", "image-split-uu,kmeans-uu", train=(TRACK2,), test=(TRACK1,), paired=True
+    )
+    result = run_evaluation(spec, Collector())
+    (c,) = result.comparisons
+    a, b = result.results[1], result.results[0]
+    assert (c["a"], c["b"], c["dataset"]) == ("kmeans-uu", "image-split-uu", "synthetic-track1")
+    assert c["value"] == pytest.approx(a.balanced_accuracy - b.balanced_accuracy)
+    assert c["interval"]["low"] <= c["value"] <= c["interval"]["high"]
+    assert c["text"].startswith(("+", "-")) and "[" in c["text"]
+
+
+def test_a_one_class_test_recording_is_scored_with_balanced_accuracy_undefined(
+    tmp_path: Path,
+) -> None:
+    rec = tmp_path / "straight"
+    (rec / "IMG").mkdir(parents=True)
+    lines = []
+    for i, scene in enumerate(generate_drive("track1", 60, seed=5)):
+        write_image(rec / "IMG" / f"{i:06d}.png", scene.image)
+        lines.append(f"IMG/{i:06d}.png,,,0.0,0,0,0")
+    (rec / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    spec = EvaluationSpec("", "image-split-uu", train=(TRACK2,), test=(f"udacity:{rec}", TRACK1))
+    result = run_evaluation(spec, Collector())
+    flat, other = result.results
+    assert flat.balanced_accuracy is None and flat.balanced_accuracy_ci is None
+    assert any("balanced accuracy is undefined: all 60 test labels" in n for n in flat.notes)
+    assert flat.accuracy_ci is not None
+    assert other.balanced_accuracy is not None
+
+
+def test_methods_without_randomness_run_once_and_say_so() -> None:
+    exact = replace(PipelineConfig(), direction=replace(PipelineConfig().direction, shots=None))
+    uu, vqc = get_method("image-split-uu"), get_method("kmeans-vqc")
+    assert not seed_matters(uu, exact, None)
+    assert seed_matters(uu, PipelineConfig(), None)  # shot sampling is seeded
+    assert seed_matters(vqc, exact, None)
+    seeds, notes = method_seeds(uu, exact, None, 3)
+    assert seeds == [0] and notes == [
+        "image-split-uu has no randomness: seeds do not apply (one run)"
+    ]
+    assert method_seeds(vqc, replace(exact, seed=7), None, 3) == ([7, 8, 9], [])
+
+
+def _evaluate_json(cache: Path, *extra: str, wait_for_unit: bool = False) -> list[dict]:
+    """``python -m qdcnn evaluate --json`` in a subprocess; killed after its first unit."""
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    env = {**os.environ, "QDCNN_CACHE": str(cache), "PYTHONPATH": src}
+    args = [sys.executable, "-m", "qdcnn", "evaluate", "--data", "synthetic:track2:150"]
+    args += ["--method", "kmeans-vqc", "--folds", "3", "--json", *extra]
+    proc = subprocess.Popen(
+        args, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+    if wait_for_unit:
+        deadline = time.monotonic() + 600
+        while not list(cache.glob("evaluate/unit-*.json")) and proc.poll() is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        return []
+    stdout, _ = proc.communicate(timeout=900)
+    assert proc.returncode == 0
+    return [json.loads(line) for line in stdout.splitlines()]
+
+
+def _without_times(rows: list[dict]) -> list[dict]:
+    return [
+        {k: v for k, v in r.items() if k not in ("seconds", "pipeline_ms_per_frame")} for r in rows
+    ]
+
+
+@pytest.mark.slow
+def test_a_killed_evaluation_resumes_to_the_same_result(tmp_path: Path) -> None:
+    resumed = tmp_path / "resumed"
+    _evaluate_json(resumed, wait_for_unit=True)
+    done_before = len(list(resumed.glob("evaluate/unit-*.json")))
+    assert 1 <= done_before < 3  # killed between folds
+    rows = _evaluate_json(resumed)
+    assert len(list(resumed.glob("evaluate/unit-*.json"))) == 3
+    fresh = _evaluate_json(tmp_path / "fresh")
+    assert _without_times(rows) == _without_times(fresh)
+    # a second seed reruns only the new seed's folds
+    _evaluate_json(resumed, "--seeds", "2")
+    assert len(list(resumed.glob("evaluate/unit-*.json"))) == 6
