@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import re
 from pathlib import Path
 
 import cv2
@@ -280,6 +281,58 @@ def test_evaluate_rejects_bad_specs_and_single_class_data(tmp_path: Path) -> Non
     assert "all 12 labels are 'straight'" in res.stderr
 
 
+def test_evaluate_prints_balanced_accuracy_with_intervals_and_the_baselines(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("COLUMNS", "200")
+    args = ["evaluate", "--data", "synthetic:track2:120", "--method", "image-split-uu,kmeans-uu"]
+    res = runner.invoke(app, [*args, "--folds", "2", "--paired"])
+    assert res.exit_code == 0, res.stderr
+    header = next(line for line in res.stdout.splitlines() if "method" in line)
+    assert header.index("balanced accuracy") < header.index("accuracy ")
+    assert re.search(r"image-split-uu +│ \d\.\d\d \[\d\.\d\d, \d\.\d\d\]", res.stdout)
+    assert "majority (training)" in res.stdout and "chance" in res.stdout
+    assert "its accuracy can fall below chance" in res.stdout
+    assert re.search(r"kmeans-uu - image-split-uu: [+-]\d\.\d\d \[", res.stdout)
+    res = runner.invoke(app, [*args, "--folds", "2", "--json"])
+    row = json_lines(res.stdout)[0]
+    for key in (
+        "accuracy",
+        "accuracy_std",
+        "balanced_accuracy",
+        "balanced_accuracy_ci",
+        "accuracy_ci",
+        "macro_f1",
+        "per_class",
+        "confusion",
+        "predictions",
+    ):
+        assert key in row, key
+    assert row["balanced_accuracy_ci"]["resamples"] == 1000
+
+
+def test_evaluate_across_recordings_and_its_mistakes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    cross = ["evaluate", "--train", "synthetic:track2:120", "--method", "kmeans-uu"]
+    res = runner.invoke(app, [*cross, "--test", "synthetic:track1:100", "--json"])
+    assert res.exit_code == 0, res.stderr
+    (row,) = json_lines(res.stdout)
+    assert row["trained_on"] == ["synthetic-track2"] and row["tested_on"] == "synthetic-track1"
+    res = runner.invoke(app, [*cross, "--test", "synthetic:track2:50"])
+    assert res.exit_code == 2 and "shares 50 of its 50 frames" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    res = runner.invoke(app, [*cross, "--test", "synthetic:track1:100", "--seeds", "0"])
+    assert res.exit_code == 2 and "seeds=0 is invalid" in res.stderr
+    res = runner.invoke(app, cross)
+    assert res.exit_code == 2 and "test='none' is invalid" in res.stderr
+    two = ["--data", "synthetic:track1:60", "--data", "synthetic:track2:60"]
+    res = runner.invoke(app, ["evaluate", *two])
+    assert res.exit_code == 2 and "--protocol leave-one-out" in res.stderr
+
+
 def test_evaluate_rejects_unknown_feature_modes_and_thread_counts() -> None:
     res = runner.invoke(app, ["evaluate", "--data", "synthetic:track1:40", "--features", "curves"])
     assert res.exit_code == 2
@@ -364,7 +417,14 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     res = runner.invoke(app, [*args, "--epochs", "1", "--threads", "1", "--json"])
     assert res.exit_code == 0, res.stderr
     assert "note: skipping dnn-resnet50: no GPU" in res.stderr
-    methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
+    *rows, paired = json_lines(res.stdout)
+    methods = [row["method"] for row in rows]
+    # each hybrid against its classical twin on the same frames
+    assert [(c["a"], c["b"]) for c in paired["comparisons"]] == [
+        ("qdcnn-head", "qdcnn-head-classical"),
+        ("qdcnn-uuconv", "qdcnn-uuconv-classical"),
+        ("qdcnn-quanv", "qdcnn-quanv-classical"),
+    ]
     assert methods[6:] == [
         "dnn-pilotnet",
         "qdcnn-head",
