@@ -566,3 +566,15 @@ def test_a_second_run_into_a_locked_folder_refuses(tmp_path: Path) -> None:
         res = runner.invoke(app, ["detect-shadows", str(tmp_path / "a.png"), "--out", str(out)])
     assert res.exit_code == 2
     assert str(out) in res.stderr and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_train_direction_trains_on_several_recordings_together(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    data = ["--data", "synthetic:track1:60", "--data", "synthetic:track2:120"]
+    out = tmp_path / "model.safetensors"
+    res = runner.invoke(app, ["train-direction", *data, "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.stderr
+    obj = json_lines(res.stdout)[0]
+    assert obj["n"] == 180 and obj["data"] == "synthetic:track1:60 + synthetic:track2:120"

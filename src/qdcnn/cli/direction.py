@@ -370,7 +370,12 @@ def _with_interval(value: float | None, interval: dict[str, Any] | None) -> str:
 
 
 def train_direction_cmd(
-    data: DataOpt,
+    data: Annotated[
+        list[str],
+        typer.Option(
+            help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]; repeat to train on several."
+        ),
+    ],
     out_file: Annotated[Path, typer.Option("--out", help="Model file to write (.safetensors).")],
     method: Annotated[
         str, typer.Option(help="A registered method (see evaluate).")
@@ -409,7 +414,7 @@ def train_direction_cmd(
             lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
         )
         spec = TrainDirectionSpec(
-            data,
+            tuple(data),
             out_file,
             with_head(method, "classical" if head == "classical" else "quantum"),
             config,
@@ -425,7 +430,7 @@ def train_direction_cmd(
     else:
         s = result.model.summary
         out.print(
-            f"{result.model.method} trained on {s['n']} frames of {data} "
+            f"{result.model.method} trained on {s['n']} frames of {' + '.join(data)} "
             f"(training accuracy {s['training_accuracy']:.3f}); written to {result.path}"
         )
     raise typer.Exit(result.exit_code)

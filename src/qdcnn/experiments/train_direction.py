@@ -9,8 +9,10 @@ from typing import Any
 from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
+from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.methods import TrainingOptions, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["TrainDirectionResult", "TrainDirectionSpec", "train_direction"]
@@ -18,9 +20,10 @@ __all__ = ["TrainDirectionResult", "TrainDirectionSpec", "train_direction"]
 
 @dataclass(frozen=True)
 class TrainDirectionSpec:
-    """What ``qdcnn train-direction`` runs."""
+    """What ``qdcnn train-direction`` runs: ``data`` is one dataset spec or several,
+    trained on together (each labelled with its own steering unit)."""
 
-    data: str
+    data: str | tuple[str, ...]
     out: Path
     method: str = "image-split-uu"
     config: PipelineConfig = field(default_factory=PipelineConfig)
@@ -29,7 +32,14 @@ class TrainDirectionSpec:
     training: TrainingOptions = field(default_factory=TrainingOptions)
     use_cache: bool = True
 
+    @property
+    def specs(self) -> tuple[str, ...]:
+        """The dataset specs trained on."""
+        return (self.data,) if isinstance(self.data, str) else tuple(self.data)
+
     def __post_init__(self) -> None:
+        if not self.specs:
+            raise ParameterError("data", "none", "one dataset spec or more")
         get_method(self.method)
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
@@ -62,29 +72,18 @@ def train_direction(
     spec: TrainDirectionSpec, reporter: Reporter | None = None
 ) -> TrainDirectionResult:
     """Train ``spec.method`` on every readable frame of ``spec.data`` and save it."""
-    from qdcnn.data.frames import load_frameset, stack_images
-    from qdcnn.direction.lane_data import load_lane_data
+    import numpy as np
 
     report = reporter or Reporter()
     method = get_method(spec.method)
-    if method.inputs == "lanes":
-        assert method.grouping is not None
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
-        with report.progress(len(frames), f"lane features ({frames.name})") as advance:
-            lanes = load_lane_data(
-                frames, spec.config, (method.grouping,), use_cache=spec.use_cache, on_frame=advance
-            )
-        inputs: Any = lanes.features(method.grouping)
-        y, failures = lanes.y, lanes.failures
-    else:
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
-        images, readable, unreadable = stack_images(frames)
-        inputs, y = images[readable], frames.labels(spec.config.labels)[readable]
-        failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable
+    parts = [_inputs(spec, data, report) for data in spec.specs]
+    shapes = {np.shape(x)[1:] for x, _, _ in parts}
+    if len(shapes) > 1:
+        raise InputError(", ".join(spec.specs), f"inputs of different sizes {sorted(shapes)}")
+    inputs = np.concatenate([x for x, _, _ in parts])
+    y = np.concatenate([labels for _, labels, _ in parts])
+    failures = [f for _, _, fs in parts for f in fs]
+    check_labels_usable(y, source=" + ".join(spec.specs))
     for f in failures:
         report.failure(f)
     with report.progress(1, f"training {method.name} on {len(y)} frames") as trained:
@@ -93,7 +92,7 @@ def train_direction(
             inputs,
             y,
             spec.config,
-            spec.data,
+            " + ".join(spec.specs),
             inner_folds=spec.inner_folds,
             gap=spec.gap,
             options=spec.training,
@@ -101,3 +100,31 @@ def train_direction(
         trained()
     path = model.save(spec.out)
     return TrainDirectionResult(model, path, failures)
+
+
+def _inputs(
+    spec: TrainDirectionSpec, data: str, report: Reporter
+) -> tuple[Any, Any, list[Failure]]:
+    """Readable inputs (lane features or frames), their labels and the failures of ``data``."""
+    from qdcnn.data.frames import load_frameset, stack_images
+    from qdcnn.direction.lane_data import load_lane_data
+
+    method = get_method(spec.method)
+    frames = load_frameset(
+        data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
+    )
+    if method.inputs == "lanes":
+        assert method.grouping is not None
+        with report.progress(len(frames), f"lane features ({frames.name})") as advance:
+            lanes = load_lane_data(
+                frames,
+                spec.config,
+                (method.grouping,),
+                use_cache=spec.use_cache,
+                on_frame=advance,
+                check_labels=False,
+            )
+        return lanes.features(method.grouping), lanes.y, lanes.failures
+    images, readable, unreadable = stack_images(frames)
+    problems = [Failure(p.source, str(p)) for p in frames.problems]
+    return images[readable], frames.labels(spec.config.labels)[readable], problems + unreadable
