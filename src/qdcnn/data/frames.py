@@ -138,8 +138,11 @@ class FrameSet:
         )
 
     def fingerprint(self) -> str:
-        """Identity of the data for caches: spec, frame names, sizes and modification times."""
-        h = hashlib.sha256(os.fsencode(self.spec))
+        """Identity of the data for caches: spec, frame names, sizes and modification times.
+
+        The spec's ``@`` suffix (label settings) is left out: it changes no frame.
+        """
+        h = hashlib.sha256(os.fsencode(_split_suffix(self.spec)[0]))
         h.update(self.steering.tobytes())
         for src in self.sources:
             h.update(os.fsencode(src))
@@ -203,9 +206,9 @@ def parse_data_spec(text: str) -> DataSpec:
 
     Examples
     --------
-    >>> parse_data_spec("udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33")
-    DataSpec(kind='udacity', value='../shared/data/real-dashcam-sample', unit='rad', \
-threshold=Quantile(percent=33.0))
+    >>> spec = parse_data_spec("udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33")
+    >>> spec.kind, spec.value, spec.unit, spec.threshold
+    ('udacity', '../shared/data/real-dashcam-sample', 'rad', Quantile(percent=33.0))
     >>> parse_data_spec("carla:/a/b")
     DataSpec(kind='carla', value='/a/b', unit=None, threshold=None)
 
@@ -215,9 +218,7 @@ threshold=Quantile(percent=33.0))
         ``data=<the spec>`` and the problem: a bad kind, an unknown or repeated key, a
         unit not in the list, a threshold that is neither a number >= 0 nor ``pNN``.
     """
-    head, at, suffix = text.rpartition("@")
-    if not at or "=" not in suffix:
-        head, suffix = text, ""
+    head, suffix = _split_suffix(text)
     try:
         kind, value = parse_spec(head)
     except ParameterError as e:
@@ -226,6 +227,12 @@ threshold=Quantile(percent=33.0))
     unit = settings.get("unit")
     threshold = _spec_threshold(text, settings["threshold"]) if "threshold" in settings else None
     return DataSpec(kind, value, unit, threshold)
+
+
+def _split_suffix(text: str) -> tuple[str, str]:
+    """``KIND:VALUE`` and the ``@`` suffix (``""`` when there is none)."""
+    head, at, suffix = text.rpartition("@")
+    return (head, suffix) if at and "=" in suffix else (text, "")
 
 
 def _spec_settings(text: str, suffix: str) -> dict[str, str]:
