@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -143,3 +144,22 @@ def test_without_a_model_the_built_in_lane_model_decides() -> None:
     assert result.model_name.startswith("built-in lane model (image-split-uu trained on ")
     assert result.rows[0].to_dict(result.model_name)["model"] == result.model_name
     assert any(note.startswith("no --model: the built-in lane model") for note in collector.notes)
+
+
+@pytest.mark.slow
+def test_a_frame_model_reads_frames_of_another_size(tmp_path: Path) -> None:
+    pytest.importorskip("torch")
+    from qdcnn.data.frames import stack_images
+    from qdcnn.direction.methods import TrainingOptions
+
+    out = tmp_path / "cnn.safetensors"
+    training = TrainingOptions(epochs=1, threads=1)
+    spec = TrainDirectionSpec("synthetic:track2:60", out, "dnn-pilotnet", inner_folds=0)
+    train_direction(replace(spec, training=training))
+    dashcam = "synthetic:dashcam:30"  # 640x480 frames; the model trained on 320x160
+    (row,) = run_score(ScoreSpec((dashcam,), out, seed=1)).rows
+    model = DirectionModel.load(out)
+    frames = load_frameset(dashcam, seed=1)
+    images, readable, _ = stack_images(frames)
+    truth = frames.labels(model.config.labels)[readable]
+    assert row.scores == score(truth, model.predict(images[readable]))
