@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn import __version__
-from qdcnn.data.images import list_images, read_image
+from qdcnn.data.images import list_named_images, read_image, require_file
 from qdcnn.data.video import (
     MAX_VIDEO_PIXELS,
     VideoIndex,
@@ -211,14 +211,10 @@ def resolve_inputs(items: Sequence[Any]) -> tuple[list[Input], dict[str, Any]]:
         if isinstance(item, str | os.PathLike):
             path = Path(item)
             if path.is_dir():
-                files = tuple(list_images([path]).images)
-                if not files:
-                    raise InputError(path, "no image files in this folder")
+                files = tuple(list_named_images([path]).images)
                 out.append(FolderInput(unique(path.resolve().name), path, files))
-            elif not path.exists():
-                raise InputError(path, "file not found")
-            elif is_video_file(path):
-                out.append(VideoInput(unique(path.stem), path))
+            elif is_video_file(path) or not path.exists():
+                out.append(VideoInput(unique(path.stem), require_file(path, "file")))
             else:
                 raise InputError(path, f"not a video file or folder (suffix {path.suffix!r})")
         elif hasattr(item, "image") and hasattr(item, "__len__"):
