@@ -153,9 +153,10 @@ class LaneFeatures:
         image-split overlay; None unless both lines exist.
     segments : (n_segments, 4) array or None
         The segments that were grouped (``labels`` gives each one's group).
-    roi_rows : (float, float)
+    roi_rows : (float, float) or None
         Top and bottom row of the region of interest, relative to the height (0: the top
-        row, 1: the bottom one), where two lines must not cross.
+        row, 1: the bottom one), where two lines must not cross; ``None``: the rows the
+        segments span.
     """
 
     features: NDArray[np.float64]
@@ -168,7 +169,7 @@ class LaneFeatures:
     shape: tuple[int, int] = (0, 0)
     middle_line: tuple[float, float] | None = field(default=None)
     segments: NDArray[np.float64] | None = field(default=None, repr=False)
-    roi_rows: tuple[float, float] = (0.0, 1.0)
+    roi_rows: tuple[float, float] | None = None
 
 
 def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
@@ -272,6 +273,18 @@ def pair_status(
     return "ok"
 
 
+def check_rows(
+    roi_rows: tuple[float, float] | None, segments: NDArray[np.float64] | None, height: int
+) -> tuple[float, float]:
+    """The pixel rows :func:`pair_status` checks: the ROI's, or the rows the segments span."""
+    if roi_rows is not None:
+        return roi_rows[0] * (height - 1), roi_rows[1] * (height - 1)
+    if segments is None or len(segments) == 0:
+        return 0.0, float(height - 1)
+    ys = segments[:, [1, 3]]
+    return float(ys.min()), float(ys.max())
+
+
 def segment_descriptors(segments: NDArray[np.float64], width: int) -> NDArray[np.float64]:
     """Clustering descriptors ``[xm / W, cos(2 theta) / 2, sin(2 theta) / 2]`` per segment.
 
@@ -294,7 +307,7 @@ def group_segments(
     extra_features: Sequence[str] = (),
     merge_tolerance: float | None = MERGE_TOLERANCE,
     inner_lines: bool = False,
-    roi_rows: tuple[float, float] = (0.0, 1.0),
+    roi_rows: tuple[float, float] | None = None,
 ) -> LaneFeatures:
     """Split segments into a left and a right group, fit a line to each, return the slopes.
 
@@ -322,9 +335,11 @@ def group_segments(
         Keep only each group's innermost line (not the paper's; :func:`inner_line_labels`):
         the segments of other lines on that side (the far edge of the other lane, a kerb,
         a parked car) get label :data:`LEFT_OUT` and no part in the fit.
-    roi_rows : (float, float)
+    roi_rows : (float, float) or None
         Top and bottom row of the region of interest relative to the height; two lines
-        that cross between them are "crossed" (:func:`pair_status`).
+        that cross between them are "crossed" (:func:`pair_status`). ``None``: the rows
+        the segments span (a road's lines meet at the vanishing point, above the region
+        and above the segments, but often inside the frame).
 
     Returns
     -------
@@ -353,7 +368,7 @@ def group_segments(
     values = feature_values(lines, extra_features, h, w, seg, labels)
     return LaneFeatures(
         features=values,
-        status=pair_status(lines, (roi_rows[0] * (h - 1), roi_rows[1] * (h - 1))),
+        status=pair_status(lines, check_rows(roi_rows, seg, h)),
         n_segments=len(seg),
         lines=lines,
         labels=labels.astype(np.int64),
