@@ -143,6 +143,7 @@ def reproduce_cmd(
             synthetic_frames=synthetic_frames,
             use_cache=cache,
         )
+        spec.check_paths()
     except QdcnnError as exc:
         raise fail(exc) from None
     _finish(spec, as_json, quiet)

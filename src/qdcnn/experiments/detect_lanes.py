@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
-from qdcnn.data.images import encode_image, list_images, read_image
+from qdcnn.data.images import encode_image, list_named_images, read_image
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.direction.builtin import (
     DEFAULT_METHOD,
@@ -130,20 +130,15 @@ class DetectLanesResult:
 def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> DetectLanesResult:
     """Decide a direction for every image of ``spec``, writing overlays and predictions.csv."""
     report = reporter or Reporter()
+    listing = list_named_images(spec.paths)
+    if spec.out.exists() and not spec.out.is_dir():
+        raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
         model = default_direction_model(spec.method, spec.seed, reporter=report)
         report.note(f"no --model: the built-in model, {describe_default_model(model)}")
-    listing = list_images(spec.paths)
-    if not listing.images and not listing.missing:
-        raise InputError(", ".join(map(str, spec.paths)), "no image files found")
-    if spec.out.exists() and not spec.out.is_dir():
-        raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
     result = DetectLanesResult(model, spec.out, skipped=listing.skipped)
-    for problem in listing.missing:
-        result.failures.append(Failure(problem.source, str(problem)))
-        report.failure(result.failures[-1])
     note_shared_stems(listing.images, report)
     with (
         ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,

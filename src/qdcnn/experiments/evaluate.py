@@ -20,6 +20,7 @@ from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
+from qdcnn.data.images import require_file
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
@@ -192,6 +193,8 @@ class EvaluationSpec:
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        if self.training.weights is not None:
+            require_file(self.training.weights, "weights file")
 
 
 @dataclass

@@ -24,7 +24,14 @@ from qdcnn.direction.builtin import (
 )
 from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import DirectionModel
-from qdcnn.runtime.engine import InputResult, Progress, RunOptions, RunResult, run_inputs
+from qdcnn.runtime.engine import (
+    InputResult,
+    Progress,
+    RunOptions,
+    RunResult,
+    resolve_inputs,
+    run_inputs,
+)
 from qdcnn.runtime.reporting import Failure, Reporter
 
 __all__ = ["RunSpec", "run"]
@@ -75,6 +82,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
 
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
+    resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
     if spec.model is not None:
         model = DirectionModel.load(spec.model)
     else:
