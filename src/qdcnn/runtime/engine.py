@@ -19,7 +19,8 @@ index, never per chunk), and the one value that is not, processing time, is writ
 
 ``frames.csv`` columns (csv module, rows in frame order): ``frame``, ``timestamp`` (seconds,
 empty for image folders), ``direction`` (the decision; with ``smooth=K`` the majority vote
-over the frame and the K - 1 frames before it), ``direction_raw`` (only with smoothing),
+over the frame and the K - 1 frames before it), ``direction_raw`` (the frame's own decision
+before the vote; always present, equal to ``direction`` without smoothing),
 ``p_<class>`` per class when the processor gives probabilities, ``shadow_fraction``,
 ``lane_status`` (or ``error`` for a frame that could not be decoded or processed).
 ``timings.csv``: ``frame``, ``process_ms`` (for a processor that works in batches, the
@@ -343,10 +344,9 @@ def _fmt(value: float | None, digits: int = 6) -> str:
 
 
 def csv_header(processor: FrameProcessor, smooth: int) -> list[str]:
-    """Columns of ``frames.csv`` for this processor and smoothing."""
-    cols = ["frame", "timestamp", "direction"]
-    if smooth > 1:
-        cols.append("direction_raw")
+    """Columns of ``frames.csv`` for this processor: the same with and without smoothing
+    (``direction_raw`` equals ``direction`` when ``smooth`` is 1)."""
+    cols = ["frame", "timestamp", "direction", "direction_raw"]
     cols += [f"p_{c}" for c in processor.classes or ()]
     return [*cols, "shadow_fraction", "lane_status"]
 
@@ -499,8 +499,7 @@ def _row(
     item: _Frame, outcome: FrameOutcome | None, decision: str | None, smooth: int, n_classes: int
 ) -> list[Any]:
     row: list[Any] = [item.index, _fmt(item.timestamp), decision or ""]
-    if smooth > 1:
-        row.append("" if outcome is None else outcome.direction or "")
+    row.append("" if outcome is None else outcome.direction or "")
     probs = outcome.probabilities if outcome is not None else None
     row += [_fmt(p) for p in probs] if probs is not None else [""] * n_classes
     if outcome is None:
