@@ -20,7 +20,7 @@ def synth_cmd(
     width: Annotated[int, typer.Option(help="Frame width in pixels.")] = 320,
     height: Annotated[int, typer.Option(help="Frame height in pixels.")] = 160,
     layout: Annotated[str, typer.Option(help="udacity | shadows | carla | all")] = "all",
-    video: Annotated[bool, typer.Option("--video", help="Also write the drive as an mp4.")] = False,
+    video: Annotated[bool, typer.Option(help="Also write the drive as an mp4.")] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Render a synthetic drive with exact ground truth in the layouts real data use."""

@@ -13,7 +13,17 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, emit, fail, out, report_error
+from qdcnn.cli._common import (
+    CliReporter,
+    JsonOpt,
+    WaitOpt,
+    click,
+    deprecated_spelling,
+    emit,
+    fail,
+    out,
+    report_error,
+)
 from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
@@ -47,7 +57,7 @@ def detect_shadows_cmd(
     calibration_classes: ClassesOpt = 2,
     seed: SeedOpt = 0,
     force: Annotated[bool, typer.Option(help="Redo images whose mask is already done.")] = False,
-    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
+    wait: WaitOpt = 0.0,
     as_json: JsonOpt = False,
 ) -> None:
     """Detect shadows; write a 0/255 mask per image at input size.
@@ -121,7 +131,11 @@ def score_shadows_cmd(
 
 
 def train_shadows_cmd(
-    data: Annotated[Path, typer.Option(help="Shadow set: DIR/images/* and DIR/masks/<stem>.png.")],
+    *,
+    shadow_set: Annotated[
+        Path | None,
+        typer.Option(help="Shadow set (required): DIR/images/* and DIR/masks/<stem>.png."),
+    ] = None,
     out_file: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
     features: Annotated[
         str, typer.Option(help="intensity | chromaticity | intensity,chromaticity")
@@ -134,6 +148,7 @@ def train_shadows_cmd(
     ] = True,
     seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
     as_json: JsonOpt = False,
+    data: Annotated[Path | None, typer.Option("--data", hidden=True)] = None,
 ) -> None:
     """Train a UU-dagger shadow model on images with masks.
 
@@ -144,9 +159,12 @@ def train_shadows_cmd(
     """
     from qdcnn.experiments.shadow_batch import ShadowTrainingSpec, train_shadows
 
+    shadow_set = deprecated_spelling(shadow_set, data, "--data", "--shadow-set")
+    if shadow_set is None:
+        raise click.exceptions.UsageError("Missing option '--shadow-set'.")
     names = tuple(f.strip() for f in features.split(",") if f.strip())
     try:
-        spec = ShadowTrainingSpec(data, out_file, names, centroids, search_threshold, seed)
+        spec = ShadowTrainingSpec(shadow_set, out_file, names, centroids, search_threshold, seed)
         result = train_shadows(spec, CliReporter(False))
     except QdcnnError as exc:
         raise fail(exc) from None
