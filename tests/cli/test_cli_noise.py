@@ -149,7 +149,7 @@ def test_circuit_bad_input(args: list[str], message: str) -> None:
         (["--p", "0,x"], "p='0,x' is invalid"),
         (["--channels", "all,bitflip"], "channel='bitflip' is invalid"),
         (["--phase-damping", "both"], "phase_damping='both' is invalid"),
-        (["--methods", "uu,dnn"], "methods='dnn' is invalid"),
+        (["--method", "uu,dnn"], "methods='dnn' is invalid"),
         (["--grouping", "halves"], "grouping='halves' is invalid"),
         (["--readout", "2"], "readout=2.0 is invalid"),
         (["--shots", "-3"], "shots=-3 is invalid"),
@@ -165,7 +165,7 @@ def test_noise_sweep_bad_options(args: list[str], message: str) -> None:
 
 
 def test_noise_sweep_needs_data_for_direction_methods() -> None:
-    res = runner.invoke(app, ["noise-sweep", "--methods", "vqc"])
+    res = runner.invoke(app, ["noise-sweep", "--method", "vqc"])
     assert res.exit_code == 2
     assert "data=None is invalid: a dataset (--data) for the uu and vqc methods" in res.stderr
 
@@ -173,7 +173,7 @@ def test_noise_sweep_needs_data_for_direction_methods() -> None:
 def test_noise_sweep_direction_json_and_figure(tmp_path: Path) -> None:
     plot = tmp_path / "fig.png"
     # seed 3: a drive of 17 left and 43 straight frames
-    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--methods", "uu,vqc"]
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu,vqc"]
     args += ["--channels", "bit-flip,phase-damping", "--phase-damping", "paper", "--p", "0:1:0.5"]
     args += ["--folds", "2", "--gap", "0", "--inner-folds", "0", "--plot", str(plot), "--json"]
     res = runner.invoke(app, args)
@@ -205,7 +205,7 @@ def test_noise_sweep_shadow_set_with_a_bad_file(tmp_path: Path) -> None:
         write_mask(root / "masks" / f"s{i}.png", m)
     (root / "images" / "zz_broken.png").write_bytes(b"not a png")
     plot = tmp_path / "ber.png"
-    args = ["noise-sweep", "--shadow-set", str(root), "--methods", "uu-shadow"]
+    args = ["noise-sweep", "--shadow-set", str(root), "--method", "uu-shadow"]
     args += ["--channels", "depolarizing", "--p", "0,1", "--plot", str(plot), "--json"]
     res = runner.invoke(app, args)
     assert res.exit_code == 1, res.output
@@ -218,7 +218,7 @@ def test_noise_sweep_shadow_set_with_a_bad_file(tmp_path: Path) -> None:
 
 
 def test_noise_sweep_table_output() -> None:
-    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--methods", "uu"]
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu"]
     args += ["--channels", "depolarizing", "--p", "0,0.5", "--folds", "2", "--inner-folds", "0"]
     args += ["--train-under-noise", "--shots", "128", "--readout", "0.01"]
     res = runner.invoke(app, args)
