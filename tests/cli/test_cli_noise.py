@@ -296,3 +296,14 @@ def test_the_trained_head_of_a_saved_model_exports_and_runs_on_aer(tmp_path: Pat
     hist = counts.result().get_counts()
     aer = np.array([hist.get(format(i, "04b"), 0) for i in range(16)]) / 20000
     assert np.abs(aer - np.array(obj["probabilities"])).max() < 0.02  # 20,000 shots
+
+
+def test_noise_sweep_takes_evaluates_lane_options_and_says_what_auto_estimated() -> None:
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu"]
+    args += ["--channels", "bit-flip", "--p", "0", "--folds", "2", "--inner-folds", "0"]
+    args += ["--lanes", "auto", "--edges", "rgb", "--track", "ema", "--json"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert res.stderr.startswith("note: synthetic-track1: camera 320x160: horizon at")
+    (row,) = json_lines(res.stdout)
+    assert row["method"] == "uu" and 0.0 <= row["accuracy"] <= 1.0
