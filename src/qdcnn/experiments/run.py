@@ -70,6 +70,11 @@ class RunSpec:
         if self.config is not None and not isinstance(self.config, PipelineConfig):
             raise ParameterError("config", type(self.config).__name__, "a PipelineConfig")
 
+    @property
+    def pipeline(self) -> PipelineConfig:
+        """The config of the built-in model (``config``, or the default one)."""
+        return self.config or PipelineConfig(seed=self.seed)
+
 
 def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     """Process every input of ``spec``; each input's result is reported as it finishes."""
@@ -78,8 +83,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
 
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
-    config = spec.config or PipelineConfig(seed=spec.seed)
-    model = direction_model(spec.model, spec.method, spec.seed, config, report.note)
+    model = direction_model(spec.model, spec.method, spec.seed, spec.pipeline, report.note)
     processor = LaneDirectionProcessor(model, seed=spec.seed)
     with ExitStack() as stack:
         executor = stack.enter_context(Executor(spec.scheduler)) if spec.scheduler else None
