@@ -76,9 +76,9 @@ from qdcnn.direction.features import cache_dir, code_fingerprint
 from qdcnn.direction.methods import get_method, method_names
 from qdcnn.direction.protocol import ContiguousKFold, majority_baseline
 from qdcnn.experiments.evaluate import evaluate_features
-from qdcnn.pipeline import GROUPINGS, auto_lanes, process_recording, recording_sample
+from qdcnn.pipeline import auto_lanes, process_recording, recording_sample
 from qdcnn.vision.camera import CameraGeometry, estimate_camera
-from qdcnn.vision.grouping import feature_names
+from qdcnn.vision.grouping import GROUPINGS, feature_names
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 REAL = {

@@ -116,7 +116,8 @@ def test_synth_killed_then_run_again(tmp_path: Path, env: dict[str, str]) -> Non
     for frame in visible(out / "udacity" / "IMG", "*.jpg"):
         assert read_image(frame).shape == (160, 320, 3)
     assert not (out / "udacity" / "driving_log.csv").exists()  # the log appears when complete
-    finish(*args, env=env)
+    finish(*args, "--force", env=env)  # the killed run's frames are there: replace them
+    assert not [p for p in out.rglob(".*.tmp*")]  # no temporary file is left behind
     from qdcnn.data.udacity import load_udacity
 
     assert len(load_udacity(out / "udacity")) == 60

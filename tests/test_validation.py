@@ -12,11 +12,15 @@ from qdcnn._validation import (
     check_bool,
     check_choice,
     check_float,
+    check_input_shape,
     check_int,
     check_odd,
     check_optional_shots,
     check_probability,
     check_seed,
+    check_shape,
+    has_shape,
+    shape_text,
 )
 from qdcnn.errors import InputError, ParameterError
 
@@ -68,3 +72,35 @@ def test_atomic_write_replaces_a_symlink_not_its_target(tmp_path):
 def test_atomic_write_into_a_directory_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="is a directory"):
         atomic_write_bytes(tmp_path, b"x")
+
+
+@pytest.mark.parametrize(
+    ("shape", "dims", "ok"),
+    [
+        ((2, 4, 4, 3), "N,H,W,3", True),
+        ((2, 4, 4, 1), "N,H,W,3", False),
+        ((4, 4), "H,W,3|H,W", True),
+        ((4, 4, 2), "H,W,3|H,W", False),
+        ((3,), "*,3", True),
+        ((5, 2, 3), "*,3", True),
+        ((), "*,3", False),
+        ((6, 2), "6,F,*", True),
+        ((6, 2, 9), "6,F,*", True),
+        ((6,), "6,F,*", False),
+        ((5, 1, 1), "5,*,1", True),
+        ((), "", True),
+    ],
+)
+def test_has_shape_reads_the_declared_axes(shape, dims, ok):
+    assert has_shape(np.zeros(shape), dims) is ok
+
+
+def test_shape_checks_name_the_shape_given():
+    assert shape_text("B,4|4") == "(B, 4) or (4,)"
+    check_shape("x", [[1.0, 2.0]], "B,2")
+    with pytest.raises(ParameterError, match=r"^x='shape \(2, 3\)' is invalid: shape \(B, 2\)$"):
+        check_shape("x", np.zeros((2, 3)), "B,2")
+    with pytest.raises(ParameterError, match=r"^w='shape \(\)' is invalid: three angles$"):
+        check_shape("w", 1.0, "*,3", "three angles")
+    with pytest.raises(InputError, match=r"^img: expected shape \(H, W\), got shape \(1, 2, 3\)$"):
+        check_input_shape("img", np.zeros((1, 2, 3)), "H,W")

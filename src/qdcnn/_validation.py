@@ -25,7 +25,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.errors import ParameterError
+from qdcnn.errors import InputError, ParameterError
 
 #: Largest seed numpy's ``default_rng`` and torch's ``manual_seed`` both accept.
 MAX_SEED = 2**32 - 1
@@ -131,6 +131,97 @@ def check_optional_shots(value: object, name: str = "shots") -> int | None:
     return None if value is None else check_shots(value, name)
 
 
+def has_shape(array: object, dims: str) -> bool:
+    """Whether the shape of ``array`` (a NumPy array, a torch tensor, ...) matches ``dims``.
+
+    Modelled on kornia's ``KORNIA_CHECK_SHAPE``: ``dims`` names the axes, comma-separated;
+    a number is that exact size, a name (``N``, ``H``, ``B``) any size, and one ``*`` any
+    number of axes at that place. ``|`` separates alternatives. ``"N,H,W,3"`` is a batch of
+    RGB images, ``"H,W,3|H,W"`` an RGB or grey image, ``"*,3"`` three values on the last
+    axis, ``"N,F,*"`` at least two axes.
+
+    Examples
+    --------
+    >>> has_shape(np.zeros((2, 4, 4, 3)), "N,H,W,3"), has_shape(np.zeros((4, 4)), "H,W,3")
+    (True, False)
+    >>> has_shape(np.zeros(5), "*,5"), has_shape(np.zeros((2, 5)), "5|B,5")
+    (True, True)
+    """
+    shape = tuple(int(n) for n in np.shape(array))  # type: ignore[call-overload]
+    return any(_matches(shape, alternative) for alternative in dims.split("|"))
+
+
+def _matches(shape: tuple[int, ...], dims: str) -> bool:
+    names = [d.strip() for d in dims.split(",") if d.strip()]
+    if "*" in names:
+        cut = names.index("*")
+        head, tail = names[:cut], names[cut + 1 :]
+        if len(shape) < len(head) + len(tail):
+            return False
+        return _sizes_match(shape[: len(head)], head) and _sizes_match(
+            shape[len(shape) - len(tail) :], tail
+        )
+    return len(shape) == len(names) and _sizes_match(shape, names)
+
+
+def _sizes_match(shape: tuple[int, ...], names: list[str]) -> bool:
+    pairs = zip(shape, names, strict=True)
+    return all(not name.isdigit() or size == int(name) for size, name in pairs)
+
+
+def shape_text(dims: str) -> str:
+    """``dims`` of :func:`has_shape` as text: ``"H,W,3|H,W"`` is ``"(H, W, 3) or (H, W)"``.
+
+    Examples
+    --------
+    >>> shape_text("N"), shape_text("H,W,3|H,W")
+    ('(N,)', '(H, W, 3) or (H, W)')
+    """
+    parts = []
+    for alternative in dims.split("|"):
+        names = [d.strip() for d in alternative.split(",") if d.strip()]
+        parts.append(f"({names[0]},)" if len(names) == 1 else "(" + ", ".join(names) + ")")
+    return " or ".join(parts)
+
+
+def check_shape(name: str, array: object, dims: str, allowed: str | None = None) -> None:
+    """Raise :class:`ParameterError` unless ``array`` has the shape ``dims`` (:func:`has_shape`).
+
+    The message names the shape given and ``allowed`` (default: ``shape`` and the ``dims``).
+
+    Examples
+    --------
+    >>> check_shape("x", np.zeros((3, 2)), "B,2")
+    >>> check_shape("x", np.zeros(3), "B,2")
+    Traceback (most recent call last):
+    ...
+    qdcnn.errors.ParameterError: x='shape (3,)' is invalid: shape (B, 2)
+    """
+    if not has_shape(array, dims):
+        shape = tuple(int(n) for n in np.shape(array))  # type: ignore[call-overload]
+        raise ParameterError(name, f"shape {shape}", allowed or f"shape {shape_text(dims)}")
+
+
+def check_input_shape(source: str, array: object, dims: str, expected: str | None = None) -> None:
+    """Raise :class:`~qdcnn.errors.InputError` for input data (an image, a mask, a table)
+    unless ``array`` has the shape ``dims`` (:func:`has_shape`).
+
+    The message says what was ``expected`` (default: ``shape`` and the ``dims``) and the
+    shape given.
+
+    Examples
+    --------
+    >>> check_input_shape("mask", np.zeros((2, 2, 3)), "H,W", "a 2-D mask (H, W)")
+    Traceback (most recent call last):
+    ...
+    qdcnn.errors.InputError: mask: expected a 2-D mask (H, W), got shape (2, 2, 3)
+    """
+    if not has_shape(array, dims):
+        shape = tuple(int(n) for n in np.shape(array))  # type: ignore[call-overload]
+        wanted = expected or f"shape {shape_text(dims)}"
+        raise InputError(source, f"expected {wanted}, got shape {shape}")
+
+
 def check_feature_pairs(
     X: object,
     feature_columns: Sequence[int] | None = None,
@@ -160,8 +251,7 @@ def check_feature_pairs(
         arr = np.asarray(X, dtype=np.float64)
     except (TypeError, ValueError):
         raise ParameterError(name, f"<{type(X).__name__}>", "a numeric array (N, 2)") from None
-    if arr.ndim != 2:
-        raise ParameterError(name, f"<array of shape {arr.shape}>", "a 2-D array (N, F)")
+    check_shape(name, arr, "N,F", "a 2-D array (N, F)")
     f = arr.shape[1]
     if n_features_in is not None and f != n_features_in:
         raise ParameterError(name, f"<{f} features>", f"{n_features_in} features, as in fit")
@@ -191,8 +281,7 @@ def check_direction_labels(y: object, n_samples: int, n_classes: int = 3) -> NDA
     [2, 0, 1]
     """
     arr = np.asarray(y)
-    if arr.ndim != 1 or arr.shape[0] != n_samples:
-        raise ParameterError("y", f"<array of shape {arr.shape}>", f"shape ({n_samples},)")
+    check_shape("y", arr, str(n_samples))
     allowed = ", ".join(map(str, range(n_classes - 1))) + f" or {n_classes - 1}"
     if not np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_:
         raise ParameterError("y", f"<{arr.dtype} array>", f"class indices {allowed}")

@@ -13,8 +13,8 @@ from typing import Generic, TypeVar
 
 from qdcnn.errors import QdcnnError
 
-T = TypeVar("T")
-R = TypeVar("R")
+_T = TypeVar("_T")
+_R = TypeVar("_R")
 
 
 @dataclass(frozen=True)
@@ -29,17 +29,17 @@ class Failure:
 
 
 @dataclass(frozen=True)
-class Outcome(Generic[T, R]):
+class Outcome(Generic[_T, _R]):
     """The result of one item, or its failure."""
 
-    item: T
-    result: R | None = None
+    item: _T
+    result: _R | None = None
     failure: Failure | None = None
 
 
 def run_batch(
-    items: Iterable[T], work: Callable[[T], R], name: Callable[[T], str] = str
-) -> Iterator[Outcome[T, R]]:
+    items: Iterable[_T], work: Callable[[_T], _R], name: Callable[[_T], str] = str
+) -> Iterator[Outcome[_T, _R]]:
     """Apply ``work`` to each item; qdcnn errors and OS errors become failures, others propagate.
 
     Only the errors qdcnn raises on purpose (bad files, bad rows, bad values)

@@ -22,7 +22,15 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, ClassVar, Literal
 
-from qdcnn._validation import check_float, check_int, check_optional_shots, check_probability
+from qdcnn._validation import (
+    check_choice,
+    check_float,
+    check_int,
+    check_odd,
+    check_optional_shots,
+    check_probability,
+    check_seed,
+)
 from qdcnn.errors import ParameterError
 
 #: The paper's two shadow thresholds on the UU-dagger fidelity, one per dataset (NOTES 2).
@@ -79,19 +87,16 @@ class ShadowConfig:
     calibration_classes: int = 2
 
     def __post_init__(self) -> None:
-        _check_int("shadow.downsample", self.downsample, 1, 64)
-        _check_int("shadow.calibration_classes", self.calibration_classes, 2, 4)
-        _check_int("shadow.grid", self.grid, 1, 4096)
-        _check_range("shadow.threshold", self.threshold, 0.0, 1.0)
-        if self.shots is not None:
-            _check_int("shadow.shots", self.shots, 1, 10**9)
-        if self.median_ksize < 1 or self.median_ksize % 2 == 0:
-            raise ParameterError("shadow.median_ksize", self.median_ksize, "a positive odd integer")
+        check_int("shadow.downsample", self.downsample, 1, 64)
+        check_int("shadow.calibration_classes", self.calibration_classes, 2, 4)
+        check_int("shadow.grid", self.grid, 1, 4096)
+        check_float("shadow.threshold", self.threshold, 0.0, 1.0)
+        check_optional_shots(self.shots, "shadow.shots")
+        check_odd("shadow.median_ksize", self.median_ksize)
         if self.centroid is not None:
-            _check_range("shadow.centroid", self.centroid, 0.0, 255.0)
-        _check_int("shadow.propagation_iterations", self.propagation_iterations, 1, 10**6)
-        if self.feature not in ("intensity", "chromaticity"):
-            raise ParameterError("shadow.feature", self.feature, "'intensity' or 'chromaticity'")
+            check_float("shadow.centroid", self.centroid, 0.0, 255.0)
+        check_int("shadow.propagation_iterations", self.propagation_iterations, 1, 10**6)
+        check_choice("shadow.feature", self.feature, ("intensity", "chromaticity"))
 
 
 @dataclass(frozen=True)
@@ -245,43 +250,31 @@ class LaneConfig:
     camera: Literal["fixed", "auto"] = "fixed"
 
     def __post_init__(self) -> None:
-        for name in ("median_ksize", "blur_ksize"):
-            value = getattr(self, name)
-            bad = isinstance(value, bool) or not isinstance(value, int)
-            if bad or not 1 <= value <= 255 or value % 2 == 0:
-                raise ParameterError(f"lanes.{name}", value, "an odd integer in [1, 255]")
-        _check_range("lanes.blur_sigma", self.blur_sigma, 0.0, 1000.0)
-        _check_int("lanes.smoothing_iterations", self.smoothing_iterations, 0, 1000)
+        check_odd("lanes.median_ksize", self.median_ksize)
+        check_odd("lanes.blur_ksize", self.blur_ksize)
+        check_float("lanes.blur_sigma", self.blur_sigma, 0.0, 1000.0)
+        check_int("lanes.smoothing_iterations", self.smoothing_iterations, 0, 1000)
         if self.smoothing_margin is not None:
-            _check_int("lanes.smoothing_margin", self.smoothing_margin, 0, 10**5)
-        _check_int("lanes.canny_low", self.canny_low, 0, 10**4)
-        _check_int("lanes.canny_high", self.canny_high, 0, 10**4)
+            check_int("lanes.smoothing_margin", self.smoothing_margin, 0, 10**5)
+        check_int("lanes.canny_low", self.canny_low, 0, 10**4)
+        check_int("lanes.canny_high", self.canny_high, 0, 10**4)
         if self.canny_low > self.canny_high:
             raise ParameterError(
                 "lanes.canny_low", self.canny_low, f"at most canny_high={self.canny_high}"
             )
         roi = self.roi
-        ok = isinstance(roi, tuple | list) and len(roi) >= 3
-        if ok:
-            try:
-                pts = [(float(x), float(y)) for x, y in roi]
-            except (TypeError, ValueError):
-                ok = False
-            else:
-                ok = all(-1.0 <= v <= 2.0 and math.isfinite(v) for p in pts for v in p)
-        if not ok:
+        if not (isinstance(roi, tuple | list) and len(roi) >= 3 and all(map(_is_frame_point, roi))):
             raise ParameterError(
                 "lanes.roi", roi, "at least 3 (x, y) pairs relative to the frame size"
             )
-        _check_range("lanes.hough_rho", self.hough_rho, 1e-3, 1e4)
-        _check_range("lanes.hough_theta", self.hough_theta, 1e-6, math.pi)
-        _check_int("lanes.hough_threshold", self.hough_threshold, 1, 10**6)
-        _check_int("lanes.hough_min_line_length", self.hough_min_line_length, 0, 10**6)
-        _check_int("lanes.hough_max_line_gap", self.hough_max_line_gap, 0, 10**6)
-        if self.edge_channels not in ("grey", "rgb"):
-            raise ParameterError("lanes.edge_channels", self.edge_channels, "'grey' or 'rgb'")
-        _check_range("lanes.min_segment_angle", self.min_segment_angle, 0.0, 90.0)
-        _check_range("lanes.max_segment_angle", self.max_segment_angle, 0.0, 90.0)
+        check_float("lanes.hough_rho", self.hough_rho, 1e-3, 1e4)
+        check_float("lanes.hough_theta", self.hough_theta, 1e-6, math.pi)
+        check_int("lanes.hough_threshold", self.hough_threshold, 1, 10**6)
+        check_int("lanes.hough_min_line_length", self.hough_min_line_length, 0, 10**6)
+        check_int("lanes.hough_max_line_gap", self.hough_max_line_gap, 0, 10**6)
+        check_choice("lanes.edge_channels", self.edge_channels, ("grey", "rgb"))
+        check_float("lanes.min_segment_angle", self.min_segment_angle, 0.0, 90.0)
+        check_float("lanes.max_segment_angle", self.max_segment_angle, 0.0, 90.0)
         if self.max_segment_angle < self.min_segment_angle:
             raise ParameterError(
                 "lanes.max_segment_angle",
@@ -289,27 +282,18 @@ class LaneConfig:
                 f"at least min_segment_angle={self.min_segment_angle}",
             )
         if self.work_width is not None:
-            _check_int("lanes.work_width", self.work_width, 16, 8192)
-        if self.marks not in self.MARKS:
-            raise ParameterError("lanes.marks", self.marks, "'none', 'hls' or 'lab'")
-        _check_range("lanes.marks_contrast", self.marks_contrast, 0.0, 10.0)
-        _check_range("lanes.marks_width", self.marks_width, 0.002, 0.5)
-        if self.vanishing_point is not None:
-            vp = self.vanishing_point
-            ok = isinstance(vp, tuple | list) and len(vp) == 2
-            if ok:
-                try:
-                    ok = all(math.isfinite(float(v)) and -1.0 <= float(v) <= 2.0 for v in vp)
-                except (TypeError, ValueError):
-                    ok = False
-            if not ok:
-                raise ParameterError(
-                    "lanes.vanishing_point", vp, "None or (x, y) relative to the frame size"
-                )
-        if self.camera not in ("fixed", "auto"):
-            raise ParameterError("lanes.camera", self.camera, "'fixed' or 'auto'")
+            check_int("lanes.work_width", self.work_width, 16, 8192)
+        check_choice("lanes.marks", self.marks, self.MARKS)
+        check_float("lanes.marks_contrast", self.marks_contrast, 0.0, 10.0)
+        check_float("lanes.marks_width", self.marks_width, 0.002, 0.5)
+        vp = self.vanishing_point
+        if vp is not None and not (isinstance(vp, tuple | list) and _is_frame_point(vp)):
+            raise ParameterError(
+                "lanes.vanishing_point", vp, "None or (x, y) relative to the frame size"
+            )
+        check_choice("lanes.camera", self.camera, ("fixed", "auto"))
         if self.vp_tolerance is not None:
-            _check_range("lanes.vp_tolerance", self.vp_tolerance, 0.0, 10.0)
+            check_float("lanes.vp_tolerance", self.vp_tolerance, 0.0, 10.0)
             if self.vanishing_point is None:
                 raise ParameterError(
                     "lanes.vp_tolerance",
@@ -500,11 +484,10 @@ class GroupingConfig:
                 " (GroupingConfig.for_features adds them)",
             )
         if self.merge_tolerance is not None:
-            _check_range("grouping.merge_tolerance", self.merge_tolerance, 0.0, 1.0)
-        if self.track not in ("none", "ema", "kalman"):
-            raise ParameterError("grouping.track", self.track, "'none', 'ema' or 'kalman'")
-        _check_range("grouping.track_alpha", self.track_alpha, 0.01, 1.0)
-        _check_int("grouping.track_hold", self.track_hold, 0, 10**4)
+            check_float("grouping.merge_tolerance", self.merge_tolerance, 0.0, 1.0)
+        check_choice("grouping.track", self.track, ("none", "ema", "kalman"))
+        check_float("grouping.track_alpha", self.track_alpha, 0.01, 1.0)
+        check_int("grouping.track_hold", self.track_hold, 0, 10**4)
 
 
 @dataclass(frozen=True)
@@ -537,10 +520,9 @@ class VQCConfig:
         check_int("vqc.feature_map_reps", self.feature_map_reps, 1, 8)
         check_int("vqc.ansatz_reps", self.ansatz_reps, 0, 16)
         check_int("vqc.maxiter", self.maxiter, 1, 100_000)
-        if self.loss not in ("mse", "cross_entropy"):
-            raise ParameterError("vqc.loss", self.loss, "'mse' or 'cross_entropy'")
+        check_choice("vqc.loss", self.loss, ("mse", "cross_entropy"))
         check_optional_shots(self.shots, "vqc.shots")
-        check_int("vqc.seed", self.seed, 0, 2**32 - 1)
+        check_seed("vqc.seed", self.seed)
 
 
 @dataclass(frozen=True)
@@ -572,10 +554,7 @@ class LabelConfig:
         check_float("labels.max_gap_s", self.max_gap_s, 0.0, 1e6, open_lo=True)
         if self.threshold is not None:
             check_float("labels.threshold", self.threshold, 0.0, 1e6)
-        if self.steering_unit not in ("auto", "norm", "rad", "deg"):
-            raise ParameterError(
-                "steering_unit", self.steering_unit, "one of 'auto', 'norm', 'rad', 'deg'"
-            )
+        check_choice("steering_unit", self.steering_unit, ("auto", "norm", "rad", "deg"))
 
 
 @dataclass(frozen=True)
@@ -613,7 +592,7 @@ class PipelineConfig:
     }
 
     def __post_init__(self) -> None:
-        check_int("seed", self.seed, 0, 2**32 - 1)
+        check_seed("seed", self.seed)
 
     @classmethod
     def paper(cls, **changes: Any) -> PipelineConfig:
@@ -723,6 +702,16 @@ _SECTION_TYPES: dict[str, type] = {
 }
 
 
+def _is_frame_point(point: Any) -> bool:
+    """Whether ``point`` is an ``(x, y)`` pair of finite numbers in [-1, 2], relative to the
+    frame size (a little outside the frame is allowed)."""
+    try:
+        x, y = point
+        return all(math.isfinite(float(v)) and -1.0 <= float(v) <= 2.0 for v in (x, y))
+    except (TypeError, ValueError):
+        return False
+
+
 def _section(section_type: type, name: str, value: object) -> Any:
     if not isinstance(value, Mapping):
         raise ParameterError(f"config.{name}", type(value).__name__, "a mapping of fields")
@@ -739,12 +728,3 @@ def _as_tuples(value: Any) -> Any:
         return tuple(_as_tuples(v) for v in value)
     return value
 
-
-def _check_int(name: str, value: object, lo: int, hi: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise ParameterError(name, value, f"an integer in [{lo}, {hi}]")
-
-
-def _check_range(name: str, value: float, lo: float, hi: float) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
-        raise ParameterError(name, value, f"a number in [{lo}, {hi}]")

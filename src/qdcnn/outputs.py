@@ -47,7 +47,7 @@ from qdcnn._fileio import temporary_sibling
 from qdcnn.errors import InputError, ParameterError
 
 LOCK_NAME = ".qdcnn.lock"
-MANIFEST_DIR = ".qdcnn-manifest"
+_MANIFEST_DIR = ".qdcnn-manifest"
 #: Names :func:`qdcnn._fileio.temporary_sibling` makes (with an optional kept suffix).
 _TEMP_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_NOFOLLOW", 0)
@@ -475,7 +475,7 @@ class Manifest:
 
     @staticmethod
     def entry_name(key: str) -> str:
-        return f"{MANIFEST_DIR}/{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
+        return f"{_MANIFEST_DIR}/{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
 
     def get(self, key: str) -> ManifestEntry | None:
         """The entry of ``key``, or ``None`` when absent or unreadable."""

@@ -33,7 +33,7 @@ from qdcnn import __version__
 from qdcnn._fileio import atomic_write_bytes, atomic_write_text
 from qdcnn.errors import InputError
 
-METADATA_KEY = "qdcnn"
+_METADATA_KEY = "qdcnn"
 #: JSON model files larger than this are refused before parsing.
 MAX_JSON_BYTES = 16 * 2**20
 #: Deepest nesting accepted in a JSON header (the parser recurses per level).
@@ -111,7 +111,7 @@ def save_model(
 
     header = ModelHeader(kind, int(format_version), __version__, dict(meta))
     tensors = {name: np.ascontiguousarray(a).reshape(np.shape(a)) for name, a in arrays.items()}
-    data = save(tensors, metadata={METADATA_KEY: header.to_json()})
+    data = save(tensors, metadata={_METADATA_KEY: header.to_json()})
     return atomic_write_bytes(path, data)
 
 
@@ -135,9 +135,9 @@ def load_model(
             arrays = {name: fh.get_tensor(name) for name in fh.keys()}
     except (SafetensorError, OSError, ValueError, TypeError) as exc:
         raise InputError(p, f"not a readable qdcnn model file ({_first_line(exc)})") from None
-    if METADATA_KEY not in metadata:
+    if _METADATA_KEY not in metadata:
         raise InputError(p, "a safetensors file without a qdcnn header (not a qdcnn model)")
-    header = _parse_header(p, metadata[METADATA_KEY], kind, versions)
+    header = _parse_header(p, metadata[_METADATA_KEY], kind, versions)
     return header, arrays
 
 

@@ -28,8 +28,6 @@ from qdcnn.vision.removal import remove_shadows
 from qdcnn.vision.roi import polygon_mask
 from qdcnn.vision.shadows import detect_shadows_uu
 
-GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
-
 
 @dataclass
 class FrameResult:

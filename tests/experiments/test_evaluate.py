@@ -154,9 +154,9 @@ def test_folds_on_a_local_dask_cluster_give_the_same_scores(tmp_path, monkeypatc
         assert a.extra["chosen_hyperparameters"] == b.extra["chosen_hyperparameters"]
     sweep = NoiseSweepSpec(
         data="synthetic:track2:200",
-        methods="uu",
-        channels="bit-flip,depolarizing",
-        p="0,0.5",
+        methods=("uu",),
+        channels=("bit-flip", "depolarizing"),
+        strengths=(0.0, 0.5),
         folds=3,
     )
     rows = run_noise_sweep(sweep).to_dicts()

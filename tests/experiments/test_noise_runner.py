@@ -20,6 +20,7 @@ from qdcnn.direction.methods import DirectionMethod, register, unregister
 from qdcnn.direction.protocol import ContiguousKFold, majority_baseline
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise import (
+    PAPER_STRENGTHS,
     NoiseSweepSpec,
     predict_folds,
     run_noise_sweep,
@@ -29,6 +30,7 @@ from qdcnn.experiments.noise import (
 )
 from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.execute import run_probabilities
+from qdcnn.quantum.noise import PAPER_CHANNELS
 from qdcnn.runtime.reporting import Collector
 from qdcnn.vision.shadow_training import train_shadow_model
 
@@ -62,19 +64,22 @@ class Recorder(Collector):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"p": "0:1"}, "p='0:1' is invalid: START:STOP:STEP"),
-        ({"p": "0:1.5:0.5"}, "p=1.5 is invalid: a probability in [0, 1]"),
-        ({"p": "0,x"}, "p='0,x' is invalid"),
-        ({"p": ",".join(["0.5"] * 1001)}, "p='<1001 values>' is invalid: at most 1000"),
-        ({"channels": "all,bitflip"}, "channel='bitflip' is invalid"),
-        ({"phase_damping": "both"}, "phase_damping='both' is invalid"),
-        ({"methods": "uu,dnn"}, "methods='dnn' is invalid"),
-        ({"methods": "dnn-pilotnet"}, "methods='dnn-pilotnet' is invalid: a quantum method"),
-        ({"grouping": "halves"}, "grouping='halves' is invalid"),
+        ({"strengths": "0:1"}, "strengths='0:1' is invalid: a tuple (parse text with"),
+        ({"strengths": (0.0, 1.5)}, "p=1.5 is invalid: a probability in [0, 1]"),
+        ({"strengths": (0.0, "x")}, "p='x' is invalid"),
+        ({"strengths": (True,)}, "p=True is invalid"),
+        ({"strengths": ()}, "p=[] is invalid: at least one strength"),
+        ({"strengths": tuple(i / 2000 for i in range(1001))}, "p='<1001 values>' is invalid"),
+        ({"channels": ("bit-flip", "bitflip")}, "channel='bitflip' is invalid"),
+        ({"channels": "all"}, "channels='all' is invalid: a tuple"),
+        ({"methods": ("uu", "dnn")}, "methods='dnn' is invalid"),
+        ({"methods": ("dnn-pilotnet",)}, "methods='dnn-pilotnet' is invalid: a quantum method"),
+        ({"methods": "uu,vqc"}, "methods='uu,vqc' is invalid: a tuple"),
+        ({"groupings": ("halves",)}, "grouping=('halves',) is invalid"),
         ({"readout": 2.0}, "readout=2.0 is invalid"),
         ({"shots": -3}, "shots=-3 is invalid"),
         (
-            {"methods": "uu,qdcnn-head", "shots": 100},
+            {"methods": ("uu", "qdcnn-head"), "shots": 100},
             "shots=100 is invalid: not used by qdcnn-head",
         ),
         ({"inner_folds": 1}, "inner_folds=1 is invalid: 0 (none) or 2 to 100"),
@@ -83,7 +88,8 @@ class Recorder(Collector):
         ({"shadow_frames": 2001}, "shadow_frames=2001 is invalid: an integer in [2, 2000]"),
         ({"seed": -1}, "seed=-1 is invalid"),
         ({"train_under_noise": 1}, "train_under_noise=1 is invalid: True or False"),
-        ({"shadow_thresholds": "fine"}, "thresholds='fine' is invalid: 'grid', 'paper'"),
+        ({"shadow_thresholds": "grid"}, "shadow_thresholds='grid' is invalid: a tuple"),
+        ({"shadow_thresholds": (0.5, 2.0)}, "thresholds=2.0 is invalid"),
         ({"config": {}}, "config='dict' is invalid: a PipelineConfig"),
     ],
 )
@@ -96,11 +102,27 @@ def test_spec_refuses_bad_values(kwargs: dict, message: str) -> None:
 
 def test_direction_methods_need_data() -> None:
     with pytest.raises(ParameterError, match="^data=None is invalid: a dataset"):
-        NoiseSweepSpec(methods="vqc")
-    spec = NoiseSweepSpec(methods="uu-shadow")  # shadows alone need none
+        NoiseSweepSpec(methods=("vqc",))
+    spec = NoiseSweepSpec(methods=("uu-shadow",))  # shadows alone need none
     assert spec.method_list == ("uu-shadow",)
-    with_set = NoiseSweepSpec(data="synthetic:track1:30", methods="uu", shadow_set=Path("x"))
+    with_set = NoiseSweepSpec(data="synthetic:track1:30", methods=("uu",), shadow_set=Path("x"))
     assert with_set.method_list == ("uu", "uu-shadow")
+
+
+def test_spec_holds_checked_tuples() -> None:
+    spec = NoiseSweepSpec(
+        methods=["uu-shadow", "uu-shadow"],  # type: ignore[arg-type]
+        channels=["bit-flip", "bit-flip"],  # type: ignore[arg-type]
+        strengths=[0, 0.5, 0.5],  # type: ignore[arg-type]
+        groupings=["kmeans"],  # type: ignore[arg-type]
+        shadow_thresholds=[0.9],  # type: ignore[arg-type]
+    )
+    assert spec.methods == ("uu-shadow",) and spec.channels == ("bit-flip",)
+    assert spec.strengths == (0.0, 0.5) and isinstance(spec.strengths[0], float)
+    assert spec.groupings == ("kmeans",) and spec.shadow_thresholds == (0.9,)
+    default = NoiseSweepSpec(methods=("uu-shadow",))
+    assert default.channels == PAPER_CHANNELS and default.strengths == PAPER_STRENGTHS
+    assert default.shadow_thresholds == SHADOW_THRESHOLD_GRID
 
 
 # ---------------------------------------------------------------- direction methods
@@ -109,9 +131,8 @@ def test_direction_methods_need_data() -> None:
 SMALL = {
     "data": "synthetic:track1:60",
     "seed": 3,  # a drive of 17 left and 43 straight frames
-    "channels": "bit-flip,phase-damping",
-    "phase_damping": "paper",
-    "p": "0:1:0.5",
+    "channels": ("bit-flip", "phase-damping-paper"),
+    "strengths": (0.0, 0.5, 1.0),
     "folds": 2,
     "gap": 0,
     "inner_folds": 0,
@@ -121,7 +142,7 @@ SMALL = {
 def test_direction_rows_json_progress_and_figure(tmp_path: Path) -> None:
     plot = tmp_path / "fig.png"
     report = Recorder()
-    run = run_noise_sweep(NoiseSweepSpec(methods="uu,vqc", plot=plot, **SMALL), report)
+    run = run_noise_sweep(NoiseSweepSpec(methods=("uu", "vqc"), plot=plot, **SMALL), report)
     assert run.exit_code == 0 and run.failures == [] and report.failures == []
     rows = run.to_dicts()
     assert len(rows) == 2 * 2 * 3  # no summary object without failures
@@ -145,15 +166,17 @@ def test_direction_rows_json_progress_and_figure(tmp_path: Path) -> None:
         ["noise sweep", 12, 12],
     ]
     # the same seed gives the same rows (features now come from the cache)
-    assert run_noise_sweep(NoiseSweepSpec(methods="uu,vqc", **SMALL)).to_dicts() == rows
+    assert run_noise_sweep(NoiseSweepSpec(methods=("uu", "vqc"), **SMALL)).to_dicts() == rows
 
 
 def test_registry_names_give_the_shorthand_rows() -> None:
     shorthand = run_noise_sweep(
-        NoiseSweepSpec(methods="uu", grouping="image-split,kmeans", **SMALL)
+        NoiseSweepSpec(methods=("uu",), groupings=("image-split", "kmeans"), **SMALL)
     ).to_dicts()
     named = run_noise_sweep(
-        NoiseSweepSpec(methods="image-split-uu,kmeans-uu", grouping="spectral", **SMALL)
+        NoiseSweepSpec(
+            methods=("image-split-uu", "kmeans-uu"), groupings=("spectral",), **SMALL
+        )
     ).to_dicts()
     assert named == shorthand
     assert [r["grouping"] for r in named[::3]] == ["image-split", "image-split", "kmeans", "kmeans"]
@@ -163,9 +186,9 @@ def test_tables_and_summary_lines() -> None:
     spec = NoiseSweepSpec(
         data="synthetic:track1:60",
         seed=3,
-        methods="uu",
-        channels="depolarizing",
-        p="0,0.5",
+        methods=("uu",),
+        channels=("depolarizing",),
+        strengths=(0.0, 0.5),
         folds=2,
         inner_folds=0,
         train_under_noise=True,
@@ -234,9 +257,9 @@ def test_a_frames_input_quantum_method_is_swept(brightness_method: str) -> None:
     spec = NoiseSweepSpec(
         data="synthetic:track1:60",
         seed=3,
-        methods=brightness_method,
-        channels="depolarizing",
-        p="0,1",
+        methods=(brightness_method,),
+        channels=("depolarizing",),
+        strengths=(0.0, 1.0),
         folds=2,
         gap=0,
         inner_folds=0,
@@ -276,7 +299,11 @@ def test_shadow_set_with_a_bad_file(tmp_path: Path) -> None:
     plot = tmp_path / "ber.png"
     report = Recorder()
     spec = NoiseSweepSpec(
-        methods="uu-shadow", shadow_set=root, channels="depolarizing", p="0,1", plot=plot
+        methods=("uu-shadow",),
+        shadow_set=root,
+        channels=("depolarizing",),
+        strengths=(0.0, 1.0),
+        plot=plot,
     )
     run = run_noise_sweep(spec, report)
     assert run.exit_code == 1

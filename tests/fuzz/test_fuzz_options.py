@@ -58,7 +58,7 @@ COMMANDS: dict[str, tuple[list[str], list[str]]] = {
         ["--shots", "--threshold", "--centroid", "--calibration-classes", "--seed"],
     ),
     "synth": (
-        ["synth", "--out", "{out}/s", "--n", "2", "--width", "32", "--height", "16"],
+        ["synth", "--out", "{out}/s", "--force", "--n", "2", "--width", "32", "--height", "16"],
         ["--n", "--seed", "--width", "--height"],
     ),
     "evaluate": (

@@ -16,6 +16,7 @@ from torch import nn  # noqa: E402
 
 from qdcnn.errors import InputError, ParameterError  # noqa: E402
 from qdcnn.models import ARCHS, CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.hybrid import HYBRIDS  # noqa: E402
 from qdcnn.models.networks import (  # noqa: E402
     NETWORKS,
     NetworkEntry,
@@ -26,7 +27,12 @@ from qdcnn.models.networks import (  # noqa: E402
 )
 from qdcnn.models.pilotnet import PilotNet  # noqa: E402
 from qdcnn.models.preprocess import PILOTNET_INPUT, normalise  # noqa: E402
-from qdcnn.models.specs import InputSpec  # noqa: E402
+from qdcnn.models.specs import (  # noqa: E402
+    HYBRID_NETWORKS,
+    InputSpec,
+    hybrid_of,
+    network_label,
+)
 
 
 def test_registry_holds_the_baselines_and_the_hybrids() -> None:
@@ -44,6 +50,17 @@ def test_registry_holds_the_baselines_and_the_hybrids() -> None:
     with pytest.raises(ParameterError) as err:
         build_network("pilotnet", in_channels=0)
     assert str(err.value) == "in_channels=0 is invalid: an integer in [1, 3072]"
+
+
+def test_each_hybrid_is_a_network_with_a_named_classical_twin() -> None:
+    assert [h.name for h in HYBRID_NETWORKS] == list(HYBRIDS)
+    assert all(network_entry(h.name).min_batch_size == h.min_batch_size for h in HYBRID_NETWORKS)
+    head = hybrid_of("qdcnn-head-classical")
+    assert head is hybrid_of("qdcnn-head") and head is not None
+    assert head.twin == "qdcnn-head-classical"
+    assert hybrid_of("pilotnet") is None and hybrid_of("pilotnet-classical") is None
+    assert network_label("qdcnn-head", "classical") == "qdcnn-head-classical"
+    assert network_label("qdcnn-head", "quantum") == network_label("qdcnn-head") == "qdcnn-head"
 
 
 def test_channels_classes_and_seeded_initialisation() -> None:
@@ -106,8 +123,10 @@ def test_a_registered_network_trains_saves_and_loads(tiny_registered: str, tmp_p
     with pytest.raises(ParameterError) as err:
         register_network(tiny_registered, NETWORKS["pilotnet"])
     assert str(err.value) == (
-        "name='tiny-bn' is invalid: a name not registered yet (pass overwrite=True)"
+        "name='tiny-bn' is invalid: a name not registered yet (pass replace=True)"
     )
+    register_network(tiny_registered, NETWORKS["pilotnet"], replace=True)
+    assert network_entry(tiny_registered) is NETWORKS["pilotnet"]
 
 
 def stacked(frame: torch.Tensor, k: int) -> torch.Tensor:

@@ -29,7 +29,8 @@ from qdcnn.quantum.circuits import (
     uu_dagger_circuit,
     vqc_circuit,
 )
-from qdcnn.quantum.noise import NoiseSpec, kraus_operators, parse_noise
+from qdcnn.quantum.noise import NoiseSpec, kraus_operators
+from qdcnn.quantum.noise_text import parse_noise
 from qdcnn.quantum.simulator import embed, probabilities, unitary
 
 pytest.importorskip("qiskit_ibm_runtime")
@@ -670,7 +671,7 @@ def test_qubit_table_reports_the_calibration(manila: DeviceNoise) -> None:
 def test_the_hybrid_head_circuit_runs_under_device_noise_as_its_expanded_form() -> None:
     """Rot lowers to RZ RY RZ: the head's circuit equals the same circuit written that way."""
     from qdcnn.quantum.circuits import CircuitBuilder
-    from qdcnn.quantum.noise import parse_noise
+    from qdcnn.quantum.noise_text import parse_noise
     from qdcnn.quantum.simulator import probabilities
     from qdcnn.quantum.templates import entangler_ranges, head_circuit
 

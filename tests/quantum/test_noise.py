@@ -8,7 +8,8 @@ import pytest
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import uu_dagger_circuit, vqc_circuit
 from qdcnn.quantum.gates import Z
-from qdcnn.quantum.noise import CHANNELS, NoiseSpec, is_cptp, kraus_operators, parse_noise
+from qdcnn.quantum.noise import CHANNELS, NoiseSpec, is_cptp, kraus_operators
+from qdcnn.quantum.noise_text import parse_noise
 from qdcnn.quantum.simulator import density_matrix, probabilities
 
 STRENGTHS = [0.0, 0.11, 0.5, 0.99, 1.0]

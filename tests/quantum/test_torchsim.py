@@ -331,7 +331,7 @@ def test_shared_parameters_only_and_builder_circuits() -> None:
 def test_device_noise_is_refused_with_where_it_runs() -> None:
     pytest.importorskip("qiskit_ibm_runtime")
     from qdcnn.errors import ParameterError
-    from qdcnn.quantum.noise import parse_noise
+    from qdcnn.quantum.noise_text import parse_noise
     from qdcnn.quantum.templates import head_template
     from qdcnn.quantum.torchsim.program import compile_template
 

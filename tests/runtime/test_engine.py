@@ -18,13 +18,9 @@ from qdcnn.data.images import write_image
 from qdcnn.data.video import VideoReader
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.outputs import OutputFolder, OutputLockedError
-from qdcnn.runtime.engine import (
-    FRAMES_CSV,
-    Progress,
-    RunOptions,
-    majority_vote,
-    run_inputs,
-)
+from qdcnn.runtime.chunks import majority_vote
+from qdcnn.runtime.engine import Progress, RunOptions, run_inputs
+from qdcnn.runtime.manifest import FRAMES_CSV
 
 pytest.importorskip("av")
 
@@ -101,13 +97,6 @@ def test_decisions_do_not_depend_on_chunking_and_smoothing_is_a_trailing_vote(
     plain = _rows((tmp_path / "raw" / "drive" / FRAMES_CSV).read_bytes())
     assert list(plain[0]) == list(rows[0])  # the same columns with and without --smooth
     assert [r["direction"] for r in plain] == raw == [r["direction_raw"] for r in plain]
-
-
-def test_majority_vote_prefers_the_most_recent_of_tied_decisions() -> None:
-    assert majority_vote(["left", "left", "right"]) == "left"
-    assert majority_vote(["left", "right"]) == "right"
-    assert majority_vote(["right", "left", None]) == "left"
-    assert majority_vote([None, None]) is None
 
 
 def test_a_re_run_skips_finished_work_and_redoes_missing_or_stale_work(
@@ -380,23 +369,31 @@ def test_the_lane_pipeline_processor_gives_each_frame_its_own_result(tmp_path: P
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("busy_cpu")
 def test_local_cluster_with_a_killed_worker_gives_identical_output(
     clip: Path, reference: bytes, tmp_path: Path
 ) -> None:
     pytest.importorskip("distributed")
     from qdcnn.runtime.scheduler import Executor
 
-    marker = tmp_path / "killed.txt"
-    processor = HalvesProcessor(kill_at=21, marker=str(marker))
-    seen: list[Progress] = []
+    alone = tmp_path / "alone"
+    run_inputs([clip], HalvesProcessor(), alone, options=OPTIONS)
     with Executor("local:2", timeout=60) as ex:
-        result = run_inputs(
-            [clip], processor, tmp_path / "out", options=OPTIONS, executor=ex, progress=seen.append
-        )
-    assert marker.exists() and result.ok  # a worker died mid-chunk; the job finished
-    assert (tmp_path / "out" / "drive" / FRAMES_CSV).read_bytes() == reference
-    assert result.executor["kind"] == "local" and result.executor["workers"] == 2
-    assert seen[-1] == Progress("drive", N, N)
+        # the first task's first frame (its worker may hold the only computed copy of the
+        # shared processor and sources), mid-run, and in the last chunks
+        for kill_at in (0, 21, 45):
+            marker = tmp_path / f"killed-at-{kill_at}.txt"
+            processor = HalvesProcessor(kill_at=kill_at, marker=str(marker))
+            out, seen = tmp_path / f"out-{kill_at}", list[Progress]()
+            result = run_inputs(
+                [clip], processor, out, options=OPTIONS, executor=ex, progress=seen.append
+            )
+            assert marker.exists() and result.ok, kill_at  # a worker died; the job finished
+            for name in (FRAMES_CSV, "overlay.mp4"):
+                assert (out / "drive" / name).read_bytes() == (alone / "drive" / name).read_bytes()
+            assert (out / "drive" / FRAMES_CSV).read_bytes() == reference
+            assert result.executor["kind"] == "local" and result.executor["workers"] == 2
+            assert seen[-1] == Progress("drive", N, N)
 
 
 def test_without_pyav_opencv_decodes_encodes_and_joins(

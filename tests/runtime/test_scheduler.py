@@ -88,6 +88,7 @@ def test_an_address_where_no_scheduler_answers_fails_within_the_timeout() -> Non
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("busy_cpu")
 def test_local_cluster_gives_the_in_process_results_even_when_a_worker_dies(
     tmp_path: Path,
 ) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.errors import InputError
-from qdcnn.runtime.engine import FrameOutcome
+from qdcnn.runtime.chunks import FrameOutcome
 
 CLASSES = ("left", "straight", "right")
 

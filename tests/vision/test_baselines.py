@@ -172,7 +172,7 @@ def test_lbp_rejects_absurd_parameters(kwargs: dict[str, object]) -> None:
         (np.zeros((4, 4, 3), np.float32), "image: expected uint8 pixels, got float32"),
         (
             np.zeros((4, 4, 4), np.uint8),
-            r"image: expected shape \(H, W, 3\) or \(H, W\), got \(4, 4, 4\)",
+            r"image: expected shape \(H, W, 3\) or \(H, W\), got shape \(4, 4, 4\)",
         ),
         (np.zeros((0, 4, 3), np.uint8), r"image: image is empty, shape \(0, 4, 3\)"),
     ],

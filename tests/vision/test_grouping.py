@@ -15,8 +15,8 @@ from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.grouping import (
     EXTRA_FEATURES,
     FAR_ROW,
+    GROUPINGS,
     LEFT_OUT,
-    METHODS,
     NEAR_PART,
     NEAR_ROW,
     feature_names,
@@ -56,7 +56,7 @@ def drawn_slopes(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
     return np.array([(x1 - x2) / (y1 - y2) for x1, y1, x2, y2 in lines])
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 @pytest.mark.parametrize("pair", PAIRS)
 def test_recovered_slopes_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
@@ -88,7 +88,7 @@ def test_clustering_follows_a_line_across_the_midline(method: str) -> None:
     assert (split.labels[crossing] == 0).all()
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_group_order_is_left_first_whatever_the_segment_order(method: str) -> None:
     segments = detect_segments(road(PAIRS["straight"]), UDACITY)
     forward = group_segments(segments, SHAPE, method)
@@ -109,7 +109,7 @@ def test_clustering_is_deterministic_for_a_seed(method: str) -> None:
     np.testing.assert_array_equal(a.features, b.features)
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_no_segments_gives_no_lines(method: str) -> None:
     result = group_segments(np.empty((0, 4)), SHAPE, method)
     assert result.status == "no-lines"
@@ -119,13 +119,13 @@ def test_no_segments_gives_no_lines(method: str) -> None:
     assert result.lines == [None, None]
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_blank_frame_gives_no_lines(method: str) -> None:
     result = lane_features(np.full((H, W, 3), 90, np.uint8), UDACITY, method)
     assert result.status == "no-lines"
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_single_drawn_line_gives_one_line_on_its_side(method: str, side: str) -> None:
     line = PAIRS["straight"][0 if side == "left" else 1]
@@ -158,7 +158,7 @@ def test_merge_keeps_two_separate_lines() -> None:
     assert merged.labels.tolist() == [0, 0]
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_one_and_two_segments(method: str) -> None:
     one = group_segments(np.array([[100.0, 70, 40, 150]]), SHAPE, method)
     assert one.status == "one-line"
@@ -169,7 +169,7 @@ def test_one_and_two_segments(method: str) -> None:
     assert two.labels.tolist() == [0, 1]
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_identical_segments_give_one_line(method: str) -> None:
     segments = np.tile([[220.0, 70, 280, 150]], (6, 1))
     result = group_segments(segments, SHAPE, method)
@@ -186,7 +186,7 @@ def test_all_segments_on_one_side_with_image_split() -> None:
     assert result.labels.tolist() == [0, 0]
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 def test_horizontal_segments_have_no_line(method: str) -> None:
     segments = np.array([[10.0, 100, 60, 100], [250, 90, 300, 90]])
     result = group_segments(segments, SHAPE, method)
@@ -319,7 +319,7 @@ def drawn_crossing(lines: list[tuple[int, int, int, int]]) -> float:
     return a * (d - b) / (a - c) + b
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", GROUPINGS)
 @pytest.mark.parametrize("pair", PAIRS)
 def test_new_extras_match_drawn_lines(method: str, pair: str) -> None:
     lines = PAIRS[pair]
@@ -397,7 +397,7 @@ def test_real_frames_extract_without_error(
     paths = list_images([root / "IMG"]).images[:50]
     images = [read_image(p) for p in paths]
     assert len(images) == 50
-    for method in METHODS:
+    for method in GROUPINGS:
         results = [lane_features(image, UDACITY, method) for image in images]
         features = np.vstack([r.features for r in results])
         statuses = [r.status for r in results]

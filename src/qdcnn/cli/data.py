@@ -21,13 +21,16 @@ def synth_cmd(
     height: Annotated[int, typer.Option(help="Frame height in pixels.")] = 160,
     layout: Annotated[str, typer.Option(help="udacity | shadows | carla | all")] = "all",
     video: Annotated[bool, typer.Option(help="Also write the drive as an mp4.")] = False,
+    force: Annotated[
+        bool, typer.Option("--force/--no-force", help="Replace what a non-empty --out holds.")
+    ] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Render a synthetic drive with exact ground truth in the layouts real data use."""
     from qdcnn.experiments.synth import SynthSpec, run_synth
 
     try:
-        result = run_synth(SynthSpec(out_dir, preset, n, seed, width, height, layout, video))
+        result = run_synth(SynthSpec(out_dir, preset, n, seed, width, height, layout, video, force))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

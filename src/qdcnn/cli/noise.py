@@ -146,6 +146,7 @@ def noise_sweep_cmd(
     Noise acts after every gate on every qubit the gate touches, as in a Qiskit Aer
     NoiseModel. uu-shadow adds the UU-dagger shadow detector's BER on images with masks.
     """
+    from qdcnn.experiments.noise import options
     from qdcnn.experiments.noise.runner import NoiseSweepSpec, run_noise_sweep
 
     method = deprecated_spelling(method, methods, "--methods", "--method")
@@ -155,9 +156,15 @@ def noise_sweep_cmd(
         )
         config = lane.config(seed, steering_unit, label_threshold)
         spec = NoiseSweepSpec(
-            data, method, channels, p, phase_damping, grouping, train_under_noise, shots,
-            readout, folds, gap, inner_folds, config, shadow_set, shadow_frames, plot, seed,
-            cache, shadow_thresholds, training_options(epochs, None, threads, False), scheduler,
+            data,
+            options.parse_methods(method),
+            options.parse_channels(channels, phase_damping),
+            options.parse_strengths(p),
+            options.parse_groupings(grouping),
+            train_under_noise, shots, readout, folds, gap, inner_folds, config, shadow_set,
+            shadow_frames, plot, seed, cache,
+            options.parse_shadow_thresholds(shadow_thresholds),
+            training_options(epochs, None, threads, False), scheduler,
         )  # fmt: skip
         run = run_noise_sweep(spec, CliReporter(False))
     except QdcnnError as exc:

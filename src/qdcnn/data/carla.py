@@ -25,11 +25,11 @@ from qdcnn.data.labels import check_steering_unit
 from qdcnn.data.recording import LabelRow, LabelRows, Recording, natural_key, parse_steering
 from qdcnn.errors import InputError
 
-STEER_TXT = "steer_values.txt"
-LABELS_CSV = "labels.csv"
-IMAGE_SUBDIR = "images"
+_STEER_TXT = "steer_values.txt"
+_LABELS_CSV = "labels.csv"
+_IMAGE_SUBDIR = "images"
 # Accepted CSV header names (case-insensitive, surrounding spaces ignored); the first present wins.
-IMAGE_COLUMNS: tuple[str, ...] = (
+_IMAGE_COLUMNS: tuple[str, ...] = (
     "image",
     "filename",
     "file_name",
@@ -40,8 +40,8 @@ IMAGE_COLUMNS: tuple[str, ...] = (
     "path",
     "center",
 )
-STEERING_COLUMNS: tuple[str, ...] = ("steering", "steer", "angle", "steering_angle", "steer_value")
-TIMESTAMP_COLUMNS: tuple[str, ...] = ("timestamp",)
+_STEERING_COLUMNS: tuple[str, ...] = ("steering", "steer", "angle", "steering_angle", "steer_value")
+_TIMESTAMP_COLUMNS: tuple[str, ...] = ("timestamp",)
 
 
 #: Any finite steering value is read; the unit decides the range afterwards.
@@ -49,7 +49,7 @@ _WIDEST = math.inf
 
 
 def _image_dir(folder: Path) -> Path:
-    sub = folder / IMAGE_SUBDIR
+    sub = folder / _IMAGE_SUBDIR
     return sub if sub.is_dir() else folder
 
 
@@ -163,16 +163,16 @@ class _Columns:
     @classmethod
     def from_header(cls, fields: list[str], source: str) -> _Columns:
         names = [f.strip().lower() for f in fields]
-        image = _pick(names, IMAGE_COLUMNS)
-        steering = _pick(names, STEERING_COLUMNS)
+        image = _pick(names, _IMAGE_COLUMNS)
+        steering = _pick(names, _STEERING_COLUMNS)
         if image is None or steering is None:
             missing = "image" if image is None else "steering"
             raise InputError(
                 source,
                 f"header '{','.join(fields)}' has no {missing} column "
-                f"(image: {', '.join(IMAGE_COLUMNS)}; steering: {', '.join(STEERING_COLUMNS)})",
+                f"(image: {', '.join(_IMAGE_COLUMNS)}; steering: {', '.join(_STEERING_COLUMNS)})",
             )
-        return cls(len(names), image, steering, _pick(names, TIMESTAMP_COLUMNS))
+        return cls(len(names), image, steering, _pick(names, _TIMESTAMP_COLUMNS))
 
 
 def _from_csv(folder: Path, csv_file: Path, strict: bool, steering_unit: str) -> Recording:
@@ -255,11 +255,11 @@ def _read_csv_row(
 
 
 def _find_labels(folder: Path) -> Path:
-    txt = folder / STEER_TXT
+    txt = folder / _STEER_TXT
     if txt.exists():
         return txt
-    if (folder / LABELS_CSV).exists():
-        return folder / LABELS_CSV
+    if (folder / _LABELS_CSV).exists():
+        return folder / _LABELS_CSV
     csvs = sorted(p for p in folder.glob("*.csv") if p.is_file())
     if len(csvs) == 1:
         return csvs[0]
@@ -268,11 +268,11 @@ def _find_labels(folder: Path) -> Path:
         names = ", ".join(display_path(p.name) for p in csvs)
         raise InputError(
             shown,
-            f"several CSV files ({names}): name the labels file {LABELS_CSV} or pass its path",
+            f"several CSV files ({names}): name the labels file {_LABELS_CSV} or pass its path",
         )
     if not any(folder.iterdir()):
-        raise InputError(shown, f"empty folder (expected images with {STEER_TXT} or a labels CSV)")
-    raise InputError(shown, f"no {STEER_TXT} or labels CSV found")
+        raise InputError(shown, f"empty folder (expected images with {_STEER_TXT} or a labels CSV)")
+    raise InputError(shown, f"no {_STEER_TXT} or labels CSV found")
 
 
 def load_carla(

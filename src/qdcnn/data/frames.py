@@ -21,9 +21,9 @@ from qdcnn.data.images import read_image
 from qdcnn.data.labels import DirectionLabels, SteeringUnit, label_directions
 from qdcnn.errors import InputError, ParameterError
 
-DEFAULT_SYNTHETIC_FRAMES = 600
+_DEFAULT_SYNTHETIC_FRAMES = 600
 #: Most bytes of frames a synthetic dataset spec renders into memory (10,000 320x160 frames).
-MAX_SYNTHETIC_BYTES = 10_000 * 320 * 160 * 3
+_MAX_SYNTHETIC_BYTES = 10_000 * 320 * 160 * 3
 
 
 @dataclass
@@ -114,7 +114,7 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
 
     ``synthetic:PRESET[:N]`` renders a recording-like drive of ``N`` frames at the
     preset's natural size (320x160; 640x480 for ``dashcam``; default 600 frames, at most
-    :data:`MAX_SYNTHETIC_BYTES` of them, held in memory) with
+    :data:`_MAX_SYNTHETIC_BYTES` of them, held in memory) with
     :func:`qdcnn.data.synthetic.generate_drive`; its steering is in [-1, 1]. Recordings
     are read lazily; ``steering_unit`` says the unit of their steering (``"auto"``:
     decided from the recording, :func:`qdcnn.data.labels.infer_steering_unit`).
@@ -128,11 +128,11 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
         if preset not in PRESETS:
             raise ParameterError("data", spec, f"a synthetic preset in {', '.join(PRESETS)}")
         try:
-            n = int(count) if count else DEFAULT_SYNTHETIC_FRAMES
+            n = int(count) if count else _DEFAULT_SYNTHETIC_FRAMES
         except ValueError:
             raise ParameterError("data", spec, "synthetic:PRESET[:N] with an integer N") from None
         width, height = STYLES[preset].size  # the preset's natural frame size
-        most = MAX_SYNTHETIC_BYTES // (width * height * 3)
+        most = _MAX_SYNTHETIC_BYTES // (width * height * 3)
         if not 10 <= n <= most:
             raise ParameterError(
                 "data",

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._fileio import atomic_write_bytes
+from qdcnn._validation import has_shape
 from qdcnn.errors import InputError
 
 IMAGE_SUFFIXES = frozenset(
@@ -40,7 +41,7 @@ _UNREADABLE = "not a readable image (corrupt or unsupported format)"
 PathArg = str | bytes | os.PathLike[str] | os.PathLike[bytes]
 
 
-def as_path(path: PathArg) -> Path:
+def _as_path(path: PathArg) -> Path:
     """``path`` as a :class:`~pathlib.Path`; ``bytes`` names are decoded as the OS does.
 
     Names that are not valid UTF-8 keep their bytes (as surrogate escapes), so the
@@ -200,7 +201,7 @@ def _decode(path: Path) -> NDArray[np.generic]:
         raise InputError(shown, f"{_UNREADABLE}: decoder error ({reason})") from None
     if img is None:
         raise InputError(shown, _UNREADABLE)
-    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
+    if not has_shape(img, "H,W|H,W,C") or img.shape[0] == 0 or img.shape[1] == 0:
         raise InputError(shown, f"image has an unusable shape {img.shape}")
     if img.shape[0] * img.shape[1] > MAX_PIXELS:
         raise InputError(
@@ -236,7 +237,7 @@ def read_image(path: PathArg) -> NDArray[np.uint8]:
     an image over :data:`MAX_PIXELS` pixels is refused without decoding it; decoder
     errors become :class:`InputError`.
     """
-    p = as_path(path)
+    p = _as_path(path)
     img = _to_uint8(_decode(p), p)
     if img.ndim == 2:
         return np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
@@ -256,7 +257,7 @@ def read_mask(path: PathArg) -> NDArray[np.bool_]:
     Colour masks are converted to grey first; 16-bit masks are scaled to 8 bits.
     Files are checked as in :func:`read_image`.
     """
-    p = as_path(path)
+    p = _as_path(path)
     img = _to_uint8(_decode(p), p)
     if img.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
@@ -334,7 +335,7 @@ def list_images(paths: Iterable[PathArg], recursive: bool = False) -> ImageListi
     """
     out = ImageListing()
     for raw in paths:
-        p = as_path(raw)
+        p = _as_path(raw)
         if p.is_dir():
             children: Sequence[Path] = sorted(p.rglob("*") if recursive else p.iterdir())
             for child in children:

@@ -28,35 +28,35 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+# The class names and indices live in qdcnn.classes; re-exported here for callers.
+from qdcnn._validation import check_shape
+from qdcnn.classes import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.config import LabelConfig
 from qdcnn.errors import InputError, ParameterError
-
-DIRECTIONS: tuple[str, str, str] = ("left", "straight", "right")
-LEFT, STRAIGHT, RIGHT = 0, 1, 2
 
 _DEFAULTS = LabelConfig()
 
 #: Units a recording's steering can be in; ``"auto"`` asks :func:`infer_steering_unit`.
-STEERING_UNITS: tuple[str, ...] = ("auto", "norm", "rad", "deg")
+_STEERING_UNITS: tuple[str, ...] = ("auto", "norm", "rad", "deg")
 #: Largest road-wheel angle of the Udacity simulator, reached at steering +-1.
-SIMULATOR_MAX_ROAD_WHEEL_DEG = 25.0
+_SIMULATOR_MAX_ROAD_WHEEL_DEG = 25.0
 #: Steering-wheel turn per road-wheel turn of a typical passenger car.
-STEERING_RATIO = 15.0
+_STEERING_RATIO = 15.0
 #: The simulator's label threshold on steering in [-1, 1] (1.25 degrees of road wheel).
-NORM_THRESHOLD = 0.05
-_WHEEL_DEG = NORM_THRESHOLD * SIMULATOR_MAX_ROAD_WHEEL_DEG * STEERING_RATIO  # 18.75
+_NORM_THRESHOLD = 0.05
+_WHEEL_DEG = _NORM_THRESHOLD * _SIMULATOR_MAX_ROAD_WHEEL_DEG * _STEERING_RATIO  # 18.75
 #: Default label threshold per unit: the same 1.25 degree road-wheel angle in each.
 DEFAULT_THRESHOLDS: dict[str, float] = {
-    "norm": NORM_THRESHOLD,
+    "norm": _NORM_THRESHOLD,
     "rad": math.radians(_WHEEL_DEG),
     "deg": _WHEEL_DEG,
 }
 #: Largest |steering| a unit can hold: a full command; +-2.5 steering-wheel turns (any car).
-UNIT_LIMITS: dict[str, float] = {"norm": 1.0, "rad": 5 * math.pi, "deg": 900.0}
+_UNIT_LIMITS: dict[str, float] = {"norm": 1.0, "rad": 5 * math.pi, "deg": 900.0}
 #: ``auto`` reads values beyond +-1.5 turns (+-3 pi: full lock of a typical car) as degrees.
 AUTO_RAD_MAX = 3 * math.pi
 #: Steering-wheel angle sensors report multiples of 0.1 degree (written in radians here).
-WHEEL_SENSOR_STEP_RAD = math.radians(0.1)
+_WHEEL_SENSOR_STEP_RAD = math.radians(0.1)
 _UNIT_NAMES = {
     "norm": "normalised steering in [-1, 1]",
     "rad": "steering-wheel angle in radians",
@@ -71,9 +71,9 @@ def _check_settings(
         raise ParameterError("window", window, "an integer >= 0 (frames on each side)")
     if not isinstance(max_gap_s, int | float) or math.isnan(max_gap_s) or max_gap_s <= 0:
         raise ParameterError("max_gap_s", max_gap_s, "a number of seconds > 0")
-    if unit not in UNIT_LIMITS:
-        raise ParameterError("unit", unit, "one of " + ", ".join(map(repr, UNIT_LIMITS)))
-    limit = UNIT_LIMITS[unit]
+    if unit not in _UNIT_LIMITS:
+        raise ParameterError("unit", unit, "one of " + ", ".join(map(repr, _UNIT_LIMITS)))
+    limit = _UNIT_LIMITS[unit]
     if threshold is not None and not (
         isinstance(threshold, int | float)
         and not isinstance(threshold, bool)
@@ -107,8 +107,8 @@ class SteeringUnit:
 
     @property
     def limit(self) -> float:
-        """Largest |steering| this unit can hold (:data:`UNIT_LIMITS`)."""
-        return UNIT_LIMITS[self.unit]
+        """Largest |steering| this unit can hold (:data:`_UNIT_LIMITS`)."""
+        return _UNIT_LIMITS[self.unit]
 
     @property
     def default_threshold(self) -> float:
@@ -121,9 +121,9 @@ class SteeringUnit:
 
 
 def check_steering_unit(value: object) -> str:
-    """``value`` if it is one of :data:`STEERING_UNITS`, else :class:`ParameterError`."""
-    if not isinstance(value, str) or value not in STEERING_UNITS:
-        raise ParameterError("steering_unit", value, "one of " + ", ".join(STEERING_UNITS))
+    """``value`` if it is one of :data:`_STEERING_UNITS`, else :class:`ParameterError`."""
+    if not isinstance(value, str) or value not in _STEERING_UNITS:
+        raise ParameterError("steering_unit", value, "one of " + ", ".join(_STEERING_UNITS))
     return value
 
 
@@ -150,7 +150,7 @@ def infer_steering_unit(steering: ArrayLike, *, simulator_names: bool = False) -
        :data:`AUTO_RAD_MAX` (+-1.5 wheel turns), else ``rad``. Fewer such values are
        treated as bad rows of a ``norm`` recording, never as evidence.
     3. At least 10 non-zero values and 20 % of them whole multiples of 0.1 degree
-       written in radians (:data:`WHEEL_SENSOR_STEP_RAD`, the resolution of
+       written in radians (:data:`_WHEEL_SENSOR_STEP_RAD`, the resolution of
        steering-wheel angle sensors): ``rad``. A normalised command lands on such a
        multiple with probability about 1e-5 per value.
     4. A value at exactly +-1 (a normalised command saturating): ``norm``.
@@ -191,7 +191,7 @@ def infer_steering_unit(steering: ArrayLike, *, simulator_names: bool = False) -
             )
         return SteeringUnit("rad", "auto", f"{beyond_one} values beyond +-1, up to {x.max():g}")
     nonzero = x[(x > 0) & (x <= 1.0)]  # the few values beyond 1 here are bad rows
-    steps = nonzero / WHEEL_SENSOR_STEP_RAD
+    steps = nonzero / _WHEEL_SENSOR_STEP_RAD
     on_step = int(np.count_nonzero(np.abs(steps - np.round(steps)) < 1e-6))
     if nonzero.size >= 10 and on_step >= 0.2 * nonzero.size:
         return SteeringUnit(
@@ -217,8 +217,7 @@ def _as_series(
     steering: ArrayLike, timestamps: ArrayLike | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     x = np.asarray(steering, dtype=np.float64)
-    if x.ndim != 1:
-        raise ParameterError("steering", f"<array of shape {x.shape}>", "a 1-D array")
+    check_shape("steering", x, "N", "a 1-D array")
     if not np.all(np.isfinite(x)):
         bad = int(np.count_nonzero(~np.isfinite(x)))
         raise ParameterError("steering", f"<{bad} non-finite values>", "finite numbers")

@@ -14,7 +14,7 @@ traffic; ``RoadScene.horizon`` and ``vanishing_point`` give its exact camera geo
 A scene is rendered from a small 3-D world (:mod:`qdcnn.data.synthetic_world`) by
 :mod:`qdcnn.data.synthetic_render`, so the shadow mask, road mask and lane-marking polylines
 are exact: they are the very polygons that were drawn. Steering follows the road curvature
-(``steering = STEERING_PER_CURVATURE * curvature``, Udacity sign convention: negative is
+(``steering = _STEERING_PER_CURVATURE * curvature``, Udacity sign convention: negative is
 left), and the direction label comes from steering with :data:`LABEL_THRESHOLD`.
 
 Examples
@@ -46,10 +46,10 @@ from qdcnn.data.synthetic_world import (
 )
 from qdcnn.errors import ParameterError
 
-STEERING_PER_CURVATURE = 20.0  # steering per unit of road curvature (1/m): radius 20 m -> 1.0
-STRAIGHT_MAX_STEERING = 0.02  # |steering| of straight scenes stays at or below this
+_STEERING_PER_CURVATURE = 20.0  # steering per unit of road curvature (1/m): radius 20 m -> 1.0
+_STRAIGHT_MAX_STEERING = 0.02  # |steering| of straight scenes stays at or below this
 LABEL_THRESHOLD = 0.05  # |steering| below this is "straight" (LabelConfig.threshold)
-MIN_SIZE, MAX_SIZE = 16, 8192
+_MIN_SIZE, _MAX_SIZE = 16, 8192
 _MPH = 0.44704  # metres per second in one mile per hour
 
 
@@ -124,8 +124,8 @@ def _check(preset: str, width: int, height: int) -> Style:
     for name, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer):
             raise ParameterError(name, value, "an integer number of pixels")
-        if not MIN_SIZE <= value <= MAX_SIZE:
-            raise ParameterError(name, value, f"between {MIN_SIZE} and {MAX_SIZE} pixels")
+        if not _MIN_SIZE <= value <= _MAX_SIZE:
+            raise ParameterError(name, value, f"between {_MIN_SIZE} and {_MAX_SIZE} pixels")
     return STYLES[preset]
 
 
@@ -176,10 +176,10 @@ def generate_scene(
     drawn = int(rng.integers(3))
     direction = drawn if direction is None else int(direction)
     if direction == STRAIGHT:
-        steering = float(rng.uniform(-STRAIGHT_MAX_STEERING, STRAIGHT_MAX_STEERING))
+        steering = float(rng.uniform(-_STRAIGHT_MAX_STEERING, _STRAIGHT_MAX_STEERING))
     else:
         steering = float(rng.uniform(*style.bend_steering)) * (1.0 if direction == RIGHT else -1.0)
-    curvature = steering / STEERING_PER_CURVATURE
+    curvature = steering / _STEERING_PER_CURVATURE
     # Past ~120 degrees of turn the road is out of view: stop the route there.
     length = min(260.0, 2.1 / abs(curvature)) if curvature else 260.0
     s0 = -40.0
@@ -292,10 +292,10 @@ def drive_curvature(
     while t < frames:
         target = 0.0
         if kind != STRAIGHT:
-            target = rng.uniform(*style.bend_steering) / STEERING_PER_CURVATURE
+            target = rng.uniform(*style.bend_steering) / _STEERING_PER_CURVATURE
             target *= 1.0 if kind == RIGHT else -1.0
         # ramps: 5-10 frames, longer for bigger changes (bend to opposite bend)
-        jump = abs(target - level) * STEERING_PER_CURVATURE
+        jump = abs(target - level) * _STEERING_PER_CURVATURE
         ramp = int(rng.integers(5, 11) + 8 * jump) if t else 0
         hold = int(rng.integers(min_frames, 2 * min_frames + 10))
         r = np.arange(1, ramp + 1) / (ramp + 1)
@@ -405,9 +405,9 @@ def _drive_scenes(
     use_hood = style.hood if hood is None else hood
     for i in range(n):
         k = float(curv_frames[i])
-        steer = float(np.clip(STEERING_PER_CURVATURE * k + noise[i], -1.0, 1.0))
+        steer = float(np.clip(_STEERING_PER_CURVATURE * k + noise[i], -1.0, 1.0))
         if k == 0.0:
-            steer = float(np.clip(steer, -STRAIGHT_MAX_STEERING, STRAIGHT_MAX_STEERING))
+            steer = float(np.clip(steer, -_STRAIGHT_MAX_STEERING, _STRAIGHT_MAX_STEERING))
         state = FrameState(
             s=float(s_frames[i]),
             lateral=float(wander[i]),

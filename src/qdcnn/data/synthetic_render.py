@@ -34,14 +34,14 @@ from qdcnn.data.synthetic_world import (
     Take,
 )
 
-F32 = NDArray[np.float32]
-U8 = NDArray[np.uint8]
-SHIFT = 4  # sub-pixel bits for cv2 drawing
-ONE = 1 << SHIFT
-FOLIAGE, TRUNK, POLE, WALL, CAR = 1, 2, 3, 4, 5
-MIN_Z = 1.0  # near clipping depth (metres); far below the bottom row
-MAX_TURN_COS = 0.5  # the road is drawn until it has turned 60 degrees from the view axis
-EDGE_COLOURS: dict[str, dict[str, tuple[float, float, float]]] = {
+_F32 = NDArray[np.float32]
+_U8 = NDArray[np.uint8]
+_SHIFT = 4  # sub-pixel bits for cv2 drawing
+_ONE = 1 << _SHIFT
+_FOLIAGE, _TRUNK, _POLE, _WALL, _CAR = 1, 2, 3, 4, 5
+_MIN_Z = 1.0  # near clipping depth (metres); far below the bottom row
+_MAX_TURN_COS = 0.5  # the road is drawn until it has turned 60 degrees from the view axis
+_EDGE_COLOURS: dict[str, dict[str, tuple[float, float, float]]] = {
     "curb": {"a": (0.80, 0.20, 0.20), "b": (0.93, 0.93, 0.92)},
     "gravel": {"a": (0.52, 0.48, 0.42)},
     "sidewalk": {"b": (0.62, 0.62, 0.60), "c": (0.46, 0.45, 0.44)},
@@ -52,7 +52,7 @@ EDGE_COLOURS: dict[str, dict[str, tuple[float, float, float]]] = {
 class Frame:
     """Pixels and ground truth of one rendered frame."""
 
-    image: U8
+    image: _U8
     shadow_mask: NDArray[np.bool_]
     road_mask: NDArray[np.bool_]
     lane_lines: list[NDArray[np.float64]]
@@ -75,7 +75,7 @@ def _noise_tile(seed: int, beta: float, size: int = 256, stretch: float = 1.0) -
     return np.asarray(base / base.std())
 
 
-def _mips(tile: FloatArray, levels: int = 7) -> tuple[F32, ...]:
+def _mips(tile: FloatArray, levels: int = 7) -> tuple[_F32, ...]:
     """Mip map of a periodic ``(n, n, c)`` tile: level ``k`` is blurred by ``0.6 * 2**k``
     texels (periodically) and subsampled by ``2**k``."""
     n = tile.shape[0]
@@ -90,7 +90,7 @@ def _mips(tile: FloatArray, levels: int = 7) -> tuple[F32, ...]:
 
 
 @lru_cache(maxsize=4)
-def _ground_textures(kind: str) -> tuple[F32, ...]:
+def _ground_textures(kind: str) -> tuple[_F32, ...]:
     """Two-channel noise tiles with mip levels.
 
     ``"fine"`` (0.03 m texels): asphalt grain, terrain grain (features twice larger).
@@ -104,7 +104,7 @@ def _ground_textures(kind: str) -> tuple[F32, ...]:
 
 
 @lru_cache(maxsize=16)
-def _screen_noise(seed: int, beta: float, width: int, height: int, scale: float) -> F32:
+def _screen_noise(seed: int, beta: float, width: int, height: int, scale: float) -> _F32:
     """Read-only noise in image space: ``scale`` texels per pixel of a 320-wide frame."""
     k = np.float32(scale * 320 / width)
     gx, gy = np.meshgrid(
@@ -119,14 +119,14 @@ def _screen_noise(seed: int, beta: float, width: int, height: int, scale: float)
 
 
 @lru_cache(maxsize=4)
-def _sensor_grain(width: int, height: int) -> F32:
+def _sensor_grain(width: int, height: int) -> _F32:
     """Read-only unit Gaussian noise twice the frame size; frames use random crops."""
     out = np.random.default_rng(99).standard_normal((2 * height, 2 * width, 3), np.float32)
     out.setflags(write=False)
     return out
 
 
-def _sample(levels: tuple[F32, ...], u: F32, v: F32, lod: FloatArray) -> F32:
+def _sample(levels: tuple[_F32, ...], u: _F32, v: _F32, lod: FloatArray) -> _F32:
     """Bilinear, per-row mip-mapped lookup of a periodic ``(n, n, c)`` tile at texel
     coordinates ``(u, v)``; returns planar ``(c, h, w)``.
 
@@ -178,8 +178,8 @@ class _View:
 
 
 def _fixed(points: FloatArray, limit: float) -> NDArray[np.int32]:
-    """Pixel coordinates to cv2's fixed point (``SHIFT`` fractional bits), clamped."""
-    return np.round(np.clip(points, -limit, limit) * ONE).astype(np.int32)
+    """Pixel coordinates to cv2's fixed point (``_SHIFT`` fractional bits), clamped."""
+    return np.round(np.clip(points, -limit, limit) * _ONE).astype(np.int32)
 
 
 def _fill(
@@ -203,7 +203,7 @@ def _fill(
         cuts = np.cumsum([len(p) for p in polys])[:-1]
         fixed = np.split(_fixed(np.concatenate(polys), limit), cuts)
     if fixed:
-        cv2.fillPoly(canvas, fixed, value, cv2.LINE_AA if aa else cv2.LINE_8, SHIFT)
+        cv2.fillPoly(canvas, fixed, value, cv2.LINE_AA if aa else cv2.LINE_8, _SHIFT)
 
 
 def _fill_each(
@@ -218,12 +218,12 @@ def _fill_each(
     line = cv2.LINE_AA if aa else cv2.LINE_8
     for p, v in zip(polys, vals, strict=True):
         if len(p) >= 3:
-            cv2.fillPoly(canvas, [_fixed(p, limit)], v, line, SHIFT)
+            cv2.fillPoly(canvas, [_fixed(p, limit)], v, line, _SHIFT)
 
 
 def _coverage(
     shape: tuple[int, int], polys: Sequence[FloatArray] | FloatArray, overlapping: bool = False
-) -> F32:
+) -> _F32:
     canvas = np.zeros(shape, np.uint8)
     if overlapping:
         _fill_each(canvas, list(polys), 255)
@@ -254,11 +254,11 @@ def _curve(view: _View, line: _Centreline, d: float) -> FloatArray:
     """Image points of the road curve at offset ``d``, up to where it leaves the visible
     ground (over a crest, beyond the view distance, or turned away from the view)."""
     xc, zc = line.x + d * line.nx, line.z + d * line.nz
-    first = int(np.argmax(zc >= MIN_Z))
+    first = int(np.argmax(zc >= _MIN_Z))
     s, xc, zc = line.s[first:], xc[first:], zc[first:]
-    if s.size < 2 or zc[0] < MIN_Z:
+    if s.size < 2 or zc[0] < _MIN_Z:
         return np.zeros((0, 2))
-    turned = np.diff(zc) < MAX_TURN_COS * np.diff(s)
+    turned = np.diff(zc) < _MAX_TURN_COS * np.diff(s)
     bad = np.concatenate([[False], turned | (zc[1:] > view.z_vis)])
     n = int(np.argmax(bad)) if bad.any() else s.size
     px, pz = xc[:n], zc[:n]
@@ -281,7 +281,7 @@ def _quads(
     d = np.array([d_in, d_in, d_out, d_out])[None, :]
     x, z = take.route.offset(s.ravel(), np.broadcast_to(d, s.shape).ravel())
     xc, zc = view.to_camera(x.reshape(s.shape), z.reshape(s.shape))
-    ok = (zc.min(1) >= MIN_Z) & (zc.max(1) <= view.z_vis)
+    ok = (zc.min(1) >= _MIN_Z) & (zc.max(1) <= view.z_vis)
     return view.project(xc[ok], zc[ok])
 
 
@@ -295,8 +295,8 @@ def _ground_polys(view: _View, polys: PolySet) -> list[tuple[int, FloatArray]]:
         return []
     starts, sizes = polys.starts, polys.sizes
     xc, zc = view.to_camera(polys.points[:, 0], polys.points[:, 1])
-    keep = zc >= MIN_Z
-    uv = view.project(xc, np.clip(zc, MIN_Z, view.z_vis))
+    keep = zc >= _MIN_Z
+    uv = view.project(xc, np.clip(zc, _MIN_Z, view.z_vis))
     kept = np.add.reduceat(keep.astype(int), starts)
     umin = np.minimum.reduceat(np.where(keep, uv[:, 0], np.inf), starts)
     umax = np.maximum.reduceat(np.where(keep, uv[:, 0], -np.inf), starts)
@@ -313,12 +313,12 @@ def _ground_polys(view: _View, polys: PolySet) -> list[tuple[int, FloatArray]]:
 # ----------------------------------------------------------------------------- rendering
 
 
-def _rgb(colour: tuple[float, ...] | NDArray[np.floating]) -> F32:
+def _rgb(colour: tuple[float, ...] | NDArray[np.floating]) -> _F32:
     """A colour as a ``(3, 1, 1)`` array, to broadcast over planar ``(3, h, w)`` images."""
     return np.asarray(colour, np.float32).reshape(3, 1, 1)
 
 
-def _blend(dst: F32, colour: F32, cov: F32) -> None:
+def _blend(dst: _F32, colour: _F32, cov: _F32) -> None:
     """Planar ``dst += (colour - dst) * cov`` in place, on the rows where ``cov`` is not 0.
 
     ``dst`` is ``(3, h, w)``; ``colour`` is ``(3, 1, 1)``, ``(3, 1, w)`` or ``(3, h, w)``.
@@ -332,7 +332,7 @@ def _blend(dst: F32, colour: F32, cov: F32) -> None:
     d += (col - d) * cov[a:b]
 
 
-def _soft(canvas: F32, sigma_rows: FloatArray, top: int) -> F32:
+def _soft(canvas: _F32, sigma_rows: FloatArray, top: int) -> _F32:
     """Blur rows ``top:`` of ``canvas`` with a per-row Gaussian width (pixels): blends of
     blurs at widths 0.5, 1.5 and 4.5 pixels (x width/320 on wider frames), interpolated in
     log width."""
@@ -354,10 +354,10 @@ class _GroundRows:
     """Depth and texture samples of the ground rows ``top:`` of a frame."""
 
     zr: FloatArray  # depth (metres) of each ground row
-    fine_road: F32
-    fine_terr: F32
-    mid_road: F32
-    macro: F32
+    fine_road: _F32
+    fine_terr: _F32
+    mid_road: _F32
+    macro: _F32
 
 
 def render(
@@ -418,7 +418,7 @@ def _ground_rows(take: Take, view: _View, zr: FloatArray) -> _GroundRows:
     zcol = zr.astype(np.float32)[:, None]
     footprint = np.sqrt(zr / cam.fx * zr**2 / (cam.fy * CAMERA_HEIGHT))
 
-    def tex(kind: str, scale: float) -> F32:
+    def tex(kind: str, scale: float) -> _F32:
         q = np.float32(1.0 / scale)
         u = (k * np.float32(c) + zcol * np.float32(s) + np.float32(view.x0 + ox)) * q
         v = (zcol * np.float32(c) - k * np.float32(s) + np.float32(view.z0 + oz)) * q
@@ -429,7 +429,7 @@ def _ground_rows(take: Take, view: _View, zr: FloatArray) -> _GroundRows:
     return _GroundRows(zr, fine_road, fine_terr, mid_road, macro)
 
 
-def _terrain(take: Take, rows: _GroundRows) -> F32:
+def _terrain(take: Take, rows: _GroundRows) -> _F32:
     """The bare terrain colour of the ground rows, planar ``(3, h - top, w)``."""
     style = take.style
     tint = take.tint.astype(np.float32)
@@ -447,8 +447,8 @@ def _road_ahead(take: Take, state: FrameState) -> FloatArray:
 
 
 def _paint_road(
-    ground: F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
-) -> F32:
+    ground: _F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
+) -> _F32:
     """Paint the asphalt onto ``ground``; return the road's coverage of the whole frame."""
     style = take.style
     half = take.route.width / 2.0
@@ -464,7 +464,7 @@ def _frame_shape(view: _View) -> tuple[int, int]:
 
 
 def _paint_edges(
-    ground: F32, take: Take, state: FrameState, view: _View, s_hi: float, fine_terr: F32
+    ground: _F32, take: Take, state: FrameState, view: _View, s_hi: float, fine_terr: _F32
 ) -> None:
     """Paint the road's edge strips (curbs, gravel or sidewalks) where the take has them."""
     style = take.style
@@ -490,14 +490,14 @@ def _paint_edges(
                 _quads(view, take, on, 1.0, side * (half + 0.25), side * (half + 3.2))
             )
     grit = 1.0 + 0.12 * fine_terr
-    for key, colour in EDGE_COLOURS[style.edge_kind].items():
+    for key, colour in _EDGE_COLOURS[style.edge_kind].items():
         if edge_polys[key]:
             cov = _coverage(_frame_shape(view), np.concatenate(edge_polys[key]))[view.top :]
             _blend(ground, _rgb(colour) * grit, cov)
 
 
 def _paint_decals(
-    ground: F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
+    ground: _F32, take: Take, view: _View, centre: _Centreline, rows: _GroundRows
 ) -> None:
     """Paint tyre tracks (track2), bushes and tar patches onto ``ground``."""
     sc = take.scenery
@@ -517,13 +517,13 @@ def _paint_decals(
 
 
 def _paint_markings(
-    ground: F32,
+    ground: _F32,
     take: Take,
     state: FrameState,
     view: _View,
     centre: _Centreline,
     s_hi: float,
-    fine_road: F32,
+    fine_road: _F32,
 ) -> list[FloatArray]:
     """Paint the lane markings; return the image points of the car lane's two borders."""
     shape, top = _frame_shape(view), view.top
@@ -552,7 +552,7 @@ def _paint_markings(
     return [_curve(view, centre, -line_d), _curve(view, centre, line_d)]
 
 
-def _paint_wet(ground: F32, take: Take, view: _View, road_cov: F32, rows: _GroundRows) -> None:
+def _paint_wet(ground: _F32, take: Take, view: _View, road_cov: _F32, rows: _GroundRows) -> None:
     """Paint the sky's reflection on a wet road and its puddles (rain preset)."""
     style = take.style
     if style.wet <= 0:
@@ -568,7 +568,7 @@ def _paint_wet(ground: F32, take: Take, view: _View, road_cov: F32, rows: _Groun
     _blend(ground, refl_col, refl)
 
 
-def _paint_shadows(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
+def _paint_shadows(ground: _F32, take: Take, view: _View, zr: FloatArray) -> _F32:
     """Darken ``ground`` under cast shadows; return their blurred coverage of the frame.
 
     Where shadows overlap the darkest wins; edges are blurred (penumbra).
@@ -596,7 +596,7 @@ def _paint_shadows(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
     return sh_alpha
 
 
-def _with_sky(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
+def _with_sky(ground: _F32, take: Take, view: _View, zr: FloatArray) -> _F32:
     """Haze the ground, add the sky above it; the frame as ``(h, w, 3)`` for cv2 drawing."""
     cam, top = view.cam, view.top
     horizon = np.asarray(take.style.sky_horizon, np.float32)
@@ -608,21 +608,23 @@ def _with_sky(ground: F32, take: Take, view: _View, zr: FloatArray) -> F32:
     return np.asarray(cv2.merge(list(planes)), np.float32)
 
 
-def _draw_casters(img: F32, take: Take, state: FrameState, view: _View) -> U8:
+def _draw_casters(img: _F32, take: Take, state: FrameState, view: _View) -> _U8:
     """Draw the roadside objects and cars, far to near; return their label image."""
     width, height = view.cam.width, view.cam.height
     labels = np.zeros((height, width), np.uint8)
     _draw_objects(img, labels, take, view)
     if take.cars:
         _draw_cars(img, labels, take, view, state.s / (take.style.speed_mph * 0.44704))
-    foliage = labels == FOLIAGE
+    foliage = labels == _FOLIAGE
     if foliage.any():
         n = _screen_noise(16, 1.6, width, height, 1.0)
         img[foliage] *= (1.0 + 0.22 * np.clip(n[foliage], -2.0, 2.0))[:, None]
     return labels
 
 
-def _camera_effects(img: F32, take: Take, rng: np.random.Generator, hood: bool) -> tuple[U8, F32]:
+def _camera_effects(
+    img: _F32, take: Take, rng: np.random.Generator, hood: bool
+) -> tuple[_U8, _F32]:
     """Car hood, weather and sensor; the 8-bit frame and the hood's coverage."""
     height, width = img.shape[:2]
     style = take.style
@@ -643,14 +645,14 @@ def _camera_effects(img: F32, take: Take, rng: np.random.Generator, hood: bool) 
 
 
 def _ground_truth(
-    image: U8,
+    image: _U8,
     take: Take,
     view: _View,
     yaw: float,
-    labels: U8,
-    hood_cov: F32,
-    sh_alpha: F32,
-    road_cov: F32,
+    labels: _U8,
+    hood_cov: _F32,
+    sh_alpha: _F32,
+    road_cov: _F32,
     lines: list[FloatArray],
 ) -> Frame:
     """The frame with its shadow and road masks and visible lane lines."""
@@ -670,7 +672,7 @@ def _ground_truth(
 
 
 def _visible(
-    points: FloatArray, width: int, height: int, top: int, hood_cov: F32
+    points: FloatArray, width: int, height: int, top: int, hood_cov: _F32
 ) -> NDArray[np.float64]:
     """Points of a projected marking inside the frame, on visible ground, not under the hood."""
     if points.size == 0:
@@ -689,7 +691,7 @@ def _visible(
     return np.asarray(pts, dtype=np.float64)
 
 
-def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int, height: int) -> F32:
+def _sky(take: Take, cam: Camera, view: _View, width: int, full_height: int, height: int) -> _F32:
     """Rows ``[0, height)``: sky gradient, distant skyline and tree line (they pan with the
     heading)."""
     style = take.style
@@ -756,7 +758,7 @@ def _hazed(colours: FloatArray, z: FloatArray, take: Take) -> FloatArray:
 _Job = tuple[float, int, str, list[NDArray[np.int32]], tuple[float, ...], int, int]
 
 
-def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
+def _draw_objects(img: _F32, labels: _U8, take: Take, view: _View) -> None:
     """Draw trees, poles and buildings standing on the ground, farthest first.
 
     Shapes are prepared for all visible objects at once; the loop only fills polygons.
@@ -770,13 +772,13 @@ def _draw_objects(img: F32, labels: U8, take: Take, view: _View) -> None:
     jobs.sort(key=lambda j: (-j[0], j[1]))
     for _, _, kind, shape_px, paint, label, thick in jobs:
         if kind == "poly":
-            cv2.fillPoly(img, shape_px, paint, cv2.LINE_8, SHIFT)
-            cv2.fillPoly(labels, shape_px, label, cv2.LINE_8, SHIFT)
+            cv2.fillPoly(img, shape_px, paint, cv2.LINE_8, _SHIFT)
+            cv2.fillPoly(labels, shape_px, label, cv2.LINE_8, _SHIFT)
         else:
             seg = shape_px[0]
             a_, b_ = (int(seg[0, 0]), int(seg[0, 1])), (int(seg[1, 0]), int(seg[1, 1]))
-            cv2.line(img, a_, b_, paint, thick, cv2.LINE_8, SHIFT)
-            cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, SHIFT)
+            cv2.line(img, a_, b_, paint, thick, cv2.LINE_8, _SHIFT)
+            cv2.line(labels, a_, b_, label, thick, cv2.LINE_8, _SHIFT)
 
 
 def _in_view(
@@ -786,8 +788,8 @@ def _in_view(
     that may reach into the frame (``margin``: how far, in metres, an object reaches
     sideways from its centre)."""
     cam = view.cam
-    zs = np.maximum(zc, MIN_Z)
-    ok = (zc > MIN_Z) & (zc < far) & (np.abs(xc) - margin < (cam.cx + 2) * zs / cam.fx)
+    zs = np.maximum(zc, _MIN_Z)
+    ok = (zc > _MIN_Z) & (zc < far) & (np.abs(xc) - margin < (cam.cx + 2) * zs / cam.fx)
     return np.flatnonzero(ok)
 
 
@@ -831,8 +833,8 @@ def _tree_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     tf, cf = _fixed(trunk, limit), _fixed(canopy, limit)
     jobs: list[_Job] = []
     for j in range(i.size):
-        jobs.append((float(z[j]), 0, "poly", [tf[j]], tuple(trunk_col[j]), TRUNK, 0))
-        jobs.append((float(z[j]), 1, "poly", [cf[j]], tuple(leaf_col[j]), FOLIAGE, 0))
+        jobs.append((float(z[j]), 0, "poly", [tf[j]], tuple(trunk_col[j]), _TRUNK, 0))
+        jobs.append((float(z[j]), 1, "poly", [cf[j]], tuple(leaf_col[j]), _FOLIAGE, 0))
     return jobs
 
 
@@ -853,17 +855,17 @@ def _pole_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     tx, tz = view.to_camera(
         p["x"][i] + p["arm"][i] * np.sin(a), p["z"][i] + p["arm"][i] * np.cos(a)
     )
-    tip = view.project(tx, np.maximum(tz, MIN_Z), hgt)
+    tip = view.project(tx, np.maximum(tz, _MIN_Z), hgt)
     widths = np.maximum(1, np.round(cam.fx * p["width"][i] / z)).astype(int)
     col = _hazed(np.tile([0.38, 0.38, 0.40], (i.size, 1)), z, take)
     pole_seg = _fixed(np.stack([base, top], 1), limit)
     arm_seg = _fixed(np.stack([top, tip], 1), limit)
     jobs: list[_Job] = []
     for j in range(i.size):
-        jobs.append((float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), POLE, int(widths[j])))
-        if p["arm"][i[j]] > 0 and tz[j] > MIN_Z:
+        jobs.append((float(z[j]), 0, "line", [pole_seg[j]], tuple(col[j]), _POLE, int(widths[j])))
+        if p["arm"][i[j]] > 0 and tz[j] > _MIN_Z:
             arm_width = max(1, int(widths[j]) - 1)
-            jobs.append((float(z[j]), 1, "line", [arm_seg[j]], tuple(col[j]), POLE, arm_width))
+            jobs.append((float(z[j]), 1, "line", [arm_seg[j]], tuple(col[j]), _POLE, arm_width))
     return jobs
 
 
@@ -872,18 +874,18 @@ def _building_jobs(take: Take, view: _View, limit: float) -> list[_Job]:
     jobs: list[_Job] = []
     for b, (corners, height_b, colour) in enumerate(take.scenery.buildings):
         _, zc = view.to_camera(corners[:, 0], corners[:, 1])
-        if zc.max() > MIN_Z and zc.min() < min(SCENERY_DISTANCE * 1.5, view.z_vis + 5.0):
+        if zc.max() > _MIN_Z and zc.min() < min(SCENERY_DISTANCE * 1.5, view.z_vis + 5.0):
             depth = float(np.mean(zc))
             faces = _building_faces(take, view, corners, height_b, colour)
             for order, (face, face_col) in enumerate(faces):
                 fixed = np.split(
                     _fixed(np.concatenate(face), limit), np.cumsum([len(f) for f in face])[:-1]
                 )
-                jobs.append((depth + 1e-6 * b, order, "poly", fixed, face_col, WALL, 0))
+                jobs.append((depth + 1e-6 * b, order, "poly", fixed, face_col, _WALL, 0))
     return jobs
 
 
-def _draw_cars(img: F32, labels: U8, take: Take, view: _View, t: float) -> None:
+def _draw_cars(img: _F32, labels: _U8, take: Take, view: _View, t: float) -> None:
     """Draw the take's cars where they are at time ``t`` (seconds), farthest first.
 
     A car is three boxes: a dark underbody (wheels) up to 0.25 m, the body in its colour up
@@ -923,8 +925,8 @@ def _draw_cars(img: F32, labels: U8, take: Take, view: _View, t: float) -> None:
             )
             for face, face_colour in _box_faces(take, view, corners, z0, z1, paint, zc[j]):
                 fixed = [_fixed(face, limit)]
-                cv2.fillPoly(img, fixed, face_colour, cv2.LINE_8, SHIFT)
-                cv2.fillPoly(labels, fixed, CAR, cv2.LINE_8, SHIFT)
+                cv2.fillPoly(img, fixed, face_colour, cv2.LINE_8, _SHIFT)
+                cv2.fillPoly(labels, fixed, _CAR, cv2.LINE_8, _SHIFT)
 
 
 _BOX_CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
@@ -983,7 +985,7 @@ def _building_faces(
     out: list[tuple[list[FloatArray], tuple[float, ...]]] = []
     for a, b, mid, lit in _visible_walls(take, view, corners):
         factor = 1.0 if lit else (0.45 if take.sun_out else 0.8)
-        z_mid = max(float(view.to_camera(mid[:1], mid[1:])[1][0]), MIN_Z)
+        z_mid = max(float(view.to_camera(mid[:1], mid[1:])[1][0]), _MIN_Z)
         wall_col = _hazed((np.asarray(colour) * take.tint * factor)[None], np.array([z_mid]), take)
         wall = np.array([[*a, 0.0], [*b, 0.0], [*b, height_b], [*a, height_b]])
         pts = _project_3d(view, wall)
@@ -1003,7 +1005,7 @@ def _building_faces(
         zs = np.stack([p0[:, 1], p1[:, 1], p1[:, 1], p0[:, 1]], 1)
         hs = np.stack([h0, h0, h1, h1], 1)
         xc, zc = view.to_camera(xs, zs)
-        ok = zc.min(1) >= MIN_Z
+        ok = zc.min(1) >= _MIN_Z
         glass = np.asarray((0.16, 0.19, 0.24) if lit else (0.10, 0.12, 0.15))
         glass_col = tuple(_hazed(glass[None], np.array([z_mid]), take)[0])
         if ok.any():
@@ -1018,11 +1020,11 @@ def _project_3d(view: _View, pts: FloatArray) -> FloatArray | None:
     out = []
     for j in range(len(poly)):
         p, q = poly[j], poly[(j + 1) % len(poly)]
-        p_in, q_in = p[1] >= MIN_Z, q[1] >= MIN_Z
+        p_in, q_in = p[1] >= _MIN_Z, q[1] >= _MIN_Z
         if p_in:
             out.append(p)
         if p_in != q_in:
-            t = (MIN_Z - p[1]) / (q[1] - p[1])
+            t = (_MIN_Z - p[1]) / (q[1] - p[1])
             out.append(tuple(pi + t * (qi - pi) for pi, qi in zip(p, q, strict=True)))
     if len(out) < 3:
         return None
@@ -1033,13 +1035,13 @@ def _project_3d(view: _View, pts: FloatArray) -> FloatArray | None:
 # ----------------------------------------------------------------------------- camera effects
 
 
-def hood_coverage(width: int, height: int) -> F32:
+def hood_coverage(width: int, height: int) -> _F32:
     """Coverage (0 to 1, read-only) of the car bonnet drawn with ``hood=True`` at this size."""
     return _hood(width, height)[0]
 
 
 @lru_cache(maxsize=8)
-def _hood(width: int, height: int) -> tuple[F32, F32, F32]:
+def _hood(width: int, height: int) -> tuple[_F32, _F32, _F32]:
     """Read-only car bonnet at the bottom (Udacity frames): its coverage, and the factor and
     the term that paint it over an ``(h, w, 3)`` image (``img * keep + add``)."""
     y, x = np.mgrid[0:height, 0:width].astype(np.float32)
@@ -1057,7 +1059,7 @@ def _hood(width: int, height: int) -> tuple[F32, F32, F32]:
     return cov, keep, add
 
 
-def _rain(img: F32, rng: np.random.Generator, width: int, height: int) -> F32:
+def _rain(img: _F32, rng: np.random.Generator, width: int, height: int) -> _F32:
     """Rain streaks, then a lower-contrast, slightly blurred look."""
     layer = np.zeros((height, width), np.float32)
     n = int(0.004 * width * height)
@@ -1066,10 +1068,10 @@ def _rain(img: F32, rng: np.random.Generator, width: int, height: int) -> F32:
     y0 = rng.uniform(-0.1 * height, height, n)
     length = rng.uniform(0.02, 0.08, n) * height
     seg = np.stack([np.stack([x0, y0], 1), np.stack([x0 + slant * length, y0 + length], 1)], 1)
-    fixed = np.round(seg * ONE).astype(np.int32)
+    fixed = np.round(seg * _ONE).astype(np.int32)
     thick = max(1, round(width / 400))
     for g, level in enumerate((0.4, 0.7, 1.0)):
-        cv2.polylines(layer, list(fixed[g::3]), False, level, thick, cv2.LINE_AA, SHIFT)
+        cv2.polylines(layer, list(fixed[g::3]), False, level, thick, cv2.LINE_AA, _SHIFT)
     layer = cv2.GaussianBlur(layer, (0, 0), 0.5 * max(width / 320, 1.0))
     streaks = cv2.merge([0.3 * layer] * 3)
     img += (np.float32(0.85) - img) * streaks

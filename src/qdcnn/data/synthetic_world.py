@@ -311,7 +311,7 @@ class Route:
         return x + d * np.cos(h), z - d * np.sin(h)
 
 
-def build_route(curvature: FloatArray, s0: float, width: float) -> Route:
+def _build_route(curvature: FloatArray, s0: float, width: float) -> Route:
     """Integrate a curvature profile (sampled every :data:`ROUTE_STEP` m from ``s0``)."""
     k = np.asarray(curvature, dtype=np.float64)
     heading = np.concatenate([[0.0], np.cumsum(0.5 * (k[1:] + k[:-1]) * ROUTE_STEP)])
@@ -472,7 +472,7 @@ def periodic_noise(rng: np.random.Generator, n: int, beta: float) -> FloatArray:
     return np.asarray(out / (out.std() + 1e-12))
 
 
-def blobs(
+def _blobs(
     rng: np.random.Generator, n: int, points: int = 48, roughness: float = 0.12
 ) -> FloatArray:
     """``n`` irregular closed outlines of about unit radius, shape ``(n, points, 2)``.
@@ -591,7 +591,7 @@ class _Layout:
     shadow_parts: _ShadowParts = field(default_factory=list)
 
 
-def make_scenery(
+def _make_scenery(
     rng: np.random.Generator,
     style: Style,
     route: Route,
@@ -648,7 +648,7 @@ def _place_trees(lay: _Layout) -> tuple[dict[str, FloatArray], FloatArray]:
         "trunk_w": rng.uniform(0.25, 0.45, n),
         "colour": rng.integers(0, len(style.foliage), n).astype(np.float64),
     }
-    outlines = _pine_outlines(rng, n) if pine else blobs(rng, n, 56, 0.13)
+    outlines = _pine_outlines(rng, n) if pine else _blobs(rng, n, 56, 0.13)
     if not pine:
         outlines[..., 1] *= 1.1
     if sun.out and n:
@@ -656,7 +656,7 @@ def _place_trees(lay: _Layout) -> tuple[dict[str, FloatArray], FloatArray]:
         along = radius / np.sin(sun.elevation) * (1.3 if pine else 1.0)
         canopy = shapes(
             base + sun.sdir * (crown * sun.cot)[:, None],
-            blobs(rng, n, 64, 0.10 if pine else 0.18),
+            _blobs(rng, n, 64, 0.10 if pine else 0.18),
             along,
             radius * (0.8 if pine else 1.0),
             sun.direction,
@@ -725,7 +725,7 @@ def _place_buildings(lay: _Layout) -> list[tuple[FloatArray, float, RGB]]:
             if sun.out:
                 moved = corners + sun.sdir * height_b * sun.cot
                 hull = _convex_hull(np.concatenate([corners, moved]).astype(np.float32))
-                lay.shadow_parts.append((densify(hull, 0.5)[None], sun.darkness(rng, 1)))
+                lay.shadow_parts.append((_densify(hull, 0.5)[None], sun.darkness(rng, 1)))
     return buildings
 
 
@@ -742,7 +742,7 @@ def _road_decals(
     r = rng.uniform(*size, s.size)
     polys = shapes(
         np.stack([xx, zz], -1),
-        blobs(rng, s.size, 32, 0.25),
+        _blobs(rng, s.size, 32, 0.25),
         r * rng.uniform(*stretch, s.size),
         r,
         hh + rng.normal(0, 0.3, s.size),
@@ -758,7 +758,7 @@ def _bushes(lay: _Layout) -> PolySet:
     r = rng.uniform(0.8, 2.5, bx.size)
     bushes = shapes(
         np.stack([bx, bz], -1),
-        blobs(rng, bx.size, 32, 0.3),
+        _blobs(rng, bx.size, 32, 0.3),
         r * rng.uniform(1.0, 2.0, bx.size),
         r,
         rng.uniform(0, 2 * np.pi, bx.size),
@@ -779,7 +779,7 @@ def _pine_outlines(rng: np.random.Generator, n: int, tiers: int = 5) -> FloatArr
     return np.concatenate([apex, right, left], axis=1)
 
 
-def densify(poly: FloatArray, step: float) -> FloatArray:
+def _densify(poly: FloatArray, step: float) -> FloatArray:
     """Insert vertices so that no edge of the closed polygon is longer than ``step``."""
     nxt = np.roll(poly, -1, axis=0)
     counts = np.maximum(1, np.ceil(np.linalg.norm(nxt - poly, axis=1) / step).astype(int))
@@ -801,14 +801,14 @@ def make_take(
     s_hi: float,
 ) -> Take:
     """Draw the materials, sun and scenery of a take on a curvature profile."""
-    route = build_route(curvature, s0, float(rng.uniform(*style.road_width)))
+    route = _build_route(curvature, s0, float(rng.uniform(*style.road_width)))
     base_line = np.asarray(style.line_colours[int(rng.integers(len(style.line_colours)))])
     line_colour = np.clip(base_line + rng.uniform(-0.04, 0.04, 3), 0.0, 1.0)
     sun_out = bool(rng.random() < style.sun_prob)
     shadow_direction = float(rng.uniform(0, 2 * np.pi))
     elevation = float(np.radians(rng.uniform(*style.sun_elevation)))
     edges = _edge_presence(rng, style, route)
-    scenery = make_scenery(rng, style, route, s_lo, s_hi, shadow_direction, elevation, sun_out)
+    scenery = _make_scenery(rng, style, route, s_lo, s_hi, shadow_direction, elevation, sun_out)
     lo, hi = style.hills
     take = Take(
         style=style,
@@ -835,11 +835,11 @@ def make_take(
         horizon=float(rng.uniform(*style.horizon)),
         yaw=float(rng.uniform(-style.yaw, style.yaw)),
         lane_width=lane,
-        cars=make_cars(rng, style, route, s_lo, s_hi, lane),
+        cars=_make_cars(rng, style, route, s_lo, s_hi, lane),
     )
 
 
-def make_cars(
+def _make_cars(
     rng: np.random.Generator,
     style: Style,
     route: Route,

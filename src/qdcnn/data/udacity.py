@@ -23,9 +23,9 @@ from qdcnn.data.labels import check_steering_unit
 from qdcnn.data.recording import LabelRow, LabelRows, Recording, parse_steering
 from qdcnn.errors import InputError
 
-COLUMNS: tuple[str, ...] = ("center", "left", "right", "steering", "throttle", "brake", "speed")
-CSV_NAME = "driving_log.csv"
-IMAGE_DIR = "IMG"
+_COLUMNS: tuple[str, ...] = ("center", "left", "right", "steering", "throttle", "brake", "speed")
+_CSV_NAME = "driving_log.csv"
+_IMAGE_DIR = "IMG"
 
 # center_YYYY_MM_DD_HH_MM_SS_mmm.jpg, the simulator's capture time
 _STAMP = re.compile(r"^center_(\d{4})_(\d{2})_(\d{2})_(\d{2})_(\d{2})_(\d{2})_(\d{3})\.\w+$")
@@ -38,7 +38,7 @@ class _ImageIndex:
 
     def __init__(self, csv_dir: Path) -> None:
         self.csv_dir = csv_dir
-        self.img_dir = csv_dir / IMAGE_DIR
+        self.img_dir = csv_dir / _IMAGE_DIR
         self.shown_dir = display_path(self.img_dir)
         try:
             names = [e.name for e in os.scandir(self.img_dir) if e.is_file()]
@@ -87,12 +87,12 @@ def _simulator_names(frames: Sequence[Path]) -> bool:
 def _csv_path(path: str | os.PathLike[str]) -> Path:
     p = Path(path)
     if p.is_dir():
-        csv_file = p / CSV_NAME
+        csv_file = p / _CSV_NAME
         if not csv_file.exists():
             empty = not any(p.iterdir())
-            what = "empty folder" if empty else f"no {CSV_NAME} in this folder"
+            what = "empty folder" if empty else f"no {_CSV_NAME} in this folder"
             raise InputError(
-                display_path(p), f"{what} (a Udacity recording holds {CSV_NAME} and {IMAGE_DIR}/)"
+                display_path(p), f"{what} (a Udacity recording holds {_CSV_NAME} and {_IMAGE_DIR}/)"
             )
     else:
         csv_file = p
@@ -108,7 +108,7 @@ def _header_columns(fields: list[str]) -> dict[str, int] | None:
     names = [f.strip().lower() for f in fields]
     if "center" not in names:
         return None
-    return {name: names.index(name) for name in COLUMNS if name in names}
+    return {name: names.index(name) for name in _COLUMNS if name in names}
 
 
 def load_udacity(
@@ -189,8 +189,8 @@ def load_udacity(
 
 def _read_rows(csv_file: Path, index: _ImageIndex, table: LabelRows) -> int:
     """Read every row into ``table``; return the number of data rows."""
-    columns = {name: i for i, name in enumerate(COLUMNS)}
-    n_columns = len(COLUMNS)
+    columns = {name: i for i, name in enumerate(_COLUMNS)}
+    n_columns = len(_COLUMNS)
     data_rows = 0
     first = True
     widest = math.inf  # the unit is settled after reading, and with it the range

@@ -16,7 +16,7 @@ uses ``CAP_PROP_POS_FRAMES``, which is exact for constant-frame-rate files (test
 counting frames with OpenCV decodes the whole file once.
 
 Bad input gets one-line :class:`~qdcnn.errors.InputError`: no video stream, no frames,
-frames smaller than :data:`MIN_SIDE` pixels or larger than :data:`MAX_VIDEO_PIXELS` (checked
+frames smaller than :data:`_MIN_SIDE` pixels or larger than :data:`MAX_VIDEO_PIXELS` (checked
 from the stream header before any frame is decoded). A corrupt or truncated file is decoded
 as far as it can be: frames that fail to decode are skipped and listed in
 :attr:`FrameReader.bad_frames`, and a file whose header promises more frames than it holds
@@ -47,17 +47,18 @@ from numpy.typing import NDArray
 
 from qdcnn._fileio import temporary_sibling
 from qdcnn._optional import has_module, require
+from qdcnn._validation import has_shape
 from qdcnn.errors import InputError, ParameterError
 
-VIDEO_SUFFIXES = frozenset({".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm"})
+_VIDEO_SUFFIXES = frozenset({".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm"})
 #: Largest frame decoded: DCI 4K (4096 x 2160); 8K (7680 x 4320) is refused.
 MAX_VIDEO_PIXELS = 4096 * 2160
 #: Smallest width and height of a frame that is read.
-MIN_SIDE = 4
+_MIN_SIDE = 4
 #: Time base of the files :class:`VideoWriter` writes with H.264 (the MPEG-TS clock).
-H264_TIME_BASE = Fraction(1, 90_000)
+_H264_TIME_BASE = Fraction(1, 90_000)
 #: MPEG-4 Part 2 needs a time base denominator below 2**16: milliseconds.
-MPEG4_TIME_BASE = Fraction(1, 1000)
+_MPEG4_TIME_BASE = Fraction(1, 1000)
 Decoder = Literal["auto", "pyav", "opencv"]
 Encoder = Literal["auto", "libx264", "mpeg4", "opencv"]
 _FORMATS = {".mp4": "mp4", ".m4v": "mp4", ".mov": "mov", ".mkv": "matroska", ".avi": "avi"}
@@ -171,9 +172,9 @@ def check_decoder(decoder: str) -> str:
 
 
 def _check_size(path: Path, width: int, height: int, max_pixels: int) -> None:
-    if width < MIN_SIDE or height < MIN_SIDE:
+    if width < _MIN_SIDE or height < _MIN_SIDE:
         raise InputError(
-            path, f"frames are {width}x{height}, smaller than {MIN_SIDE}x{MIN_SIDE} pixels"
+            path, f"frames are {width}x{height}, smaller than {_MIN_SIDE}x{_MIN_SIDE} pixels"
         )
     if width * height > max_pixels:
         raise InputError(
@@ -587,8 +588,8 @@ def video_info(path: str | os.PathLike[str], *, decoder: Decoder = "auto") -> Vi
 
 
 def is_video_file(path: str | os.PathLike[str]) -> bool:
-    """Whether ``path`` has a video suffix (:data:`VIDEO_SUFFIXES`)."""
-    return Path(path).suffix.lower() in VIDEO_SUFFIXES
+    """Whether ``path`` has a video suffix (:data:`_VIDEO_SUFFIXES`)."""
+    return Path(path).suffix.lower() in _VIDEO_SUFFIXES
 
 
 # ---------------------------------------------------------------------------- writing
@@ -789,7 +790,7 @@ class VideoWriter:
         rate = Fraction(self.fps).limit_denominator(1001)
         stream = self._container.add_stream(self.encoder, rate=rate)
         stream.width, stream.height, stream.pix_fmt = ew, eh, "yuv420p"
-        time_base = H264_TIME_BASE if self.encoder == "libx264" else MPEG4_TIME_BASE
+        time_base = _H264_TIME_BASE if self.encoder == "libx264" else _MPEG4_TIME_BASE
         stream.time_base = time_base
         stream.codec_context.time_base = time_base
         stream.codec_context.thread_count = self.threads
@@ -805,7 +806,7 @@ class VideoWriter:
     def write(self, image: NDArray[np.uint8], timestamp: float | None = None) -> None:
         """Append one RGB uint8 frame (all frames must have the first frame's size)."""
         arr = np.asarray(image)
-        if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
+        if arr.dtype != np.uint8 or not has_shape(arr, "H,W,3"):
             raise InputError(
                 "image", f"expected an RGB uint8 array (H, W, 3), got {arr.dtype} {arr.shape}"
             )

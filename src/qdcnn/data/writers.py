@@ -29,7 +29,7 @@ from qdcnn.data.images import write_image, write_mask
 from qdcnn.data.synthetic import RoadScene
 from qdcnn.errors import ParameterError
 
-DEFAULT_START = datetime(2024, 1, 1, 12, 0, 0)
+_DEFAULT_START = datetime(2024, 1, 1, 12, 0, 0)
 
 
 def simulator_number(value: float) -> str:
@@ -49,7 +49,7 @@ def simulator_number(value: float) -> str:
     return format(value, ".7g").upper()
 
 
-def udacity_name(kind: str, when: datetime) -> str:
+def _udacity_name(kind: str, when: datetime) -> str:
     """Image file name of the simulator, e.g. ``center_2024_01_01_12_00_00_100.jpg``."""
     return f"{kind}_{when:%Y_%m_%d_%H_%M_%S}_{when.microsecond // 1000:03d}.jpg"
 
@@ -132,13 +132,13 @@ class UdacityWriter(SceneSink):
         self.root = Path(out_dir).resolve()
         self.img_dir = self.root / "IMG"
         self.img_dir.mkdir(parents=True, exist_ok=True)
-        self.t0 = DEFAULT_START if start is None else start
+        self.t0 = _DEFAULT_START if start is None else start
         self._log = _TextSink(self.root / "driving_log.csv")
         self._count = 0
 
     def add(self, scene: RoadScene) -> None:
         when = self.t0 + timedelta(milliseconds=round(self._count * 1000.0 / self.fps))
-        paths = [self.img_dir / udacity_name(kind, when) for kind in ("center", "left", "right")]
+        paths = [self.img_dir / _udacity_name(kind, when) for kind in ("center", "left", "right")]
         write_image(paths[0], scene.image)
         values = (scene.steering, scene.throttle)
         self._log.write(

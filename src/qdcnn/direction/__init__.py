@@ -8,6 +8,7 @@
 ``model``              :class:`DirectionModel`: a fitted method with its settings
 ``builtin``            the built-in direction model (no ``--model``)
 ``processor``          the per-frame processor the runtime engine is handed
+``scores``             accuracy, balanced accuracy, macro-F1; block-bootstrap intervals
 =====================  ============================================================
 """
 
@@ -29,5 +30,6 @@ __getattr__, __dir__, __all__ = attach(
         "model": ["DirectionModel", "train_direction_model"],
         "builtin": ["default_direction_model", "describe_default_model"],
         "processor": ["LaneDirectionProcessor"],
+        "scores": ["Scores", "block_bootstrap", "paired_difference", "score"],
     },
 )

@@ -35,16 +35,16 @@ from qdcnn._fileio import atomic_write_bytes
 from qdcnn.batch import Failure
 from qdcnn.errors import InputError
 
-STATUSES = frozenset({"ok", "one-line", "no-lines", "unreadable"})
+_STATUSES = frozenset({"ok", "one-line", "no-lines", "unreadable"})
 #: ``(path, reason)`` -> None: told about every unusable entry before it is removed.
-BadEntryHandler = Callable[[Path, str], None]
+_BadEntryHandler = Callable[[Path, str], None]
 
 
 class FeatureCacheWarning(UserWarning):
     """A feature cache entry could not be used (it is removed and recomputed) or written."""
 
 
-class BadEntry(Exception):
+class _BadEntry(Exception):
     """Why a cache entry is unusable (internal: :func:`read_entry` turns it into a report)."""
 
 
@@ -100,7 +100,7 @@ def read_entry(
     n_frames: int,
     width: int,
     *,
-    on_bad: BadEntryHandler | None = None,
+    on_bad: _BadEntryHandler | None = None,
 ) -> CachedFeatures | None:
     """The entry at ``path`` if it exists and matches; ``None`` for a miss.
 
@@ -127,7 +127,7 @@ def read_entry(
     try:
         arrays = _load_arrays(path)
         return _checked(arrays, groupings, n_frames, width)
-    except BadEntry as exc:
+    except _BadEntry as exc:
         _report(on_bad, path, f"{exc}; removed, the features are computed again")
         evict(path, before)
         return None
@@ -153,7 +153,7 @@ def evict(path: Path, seen: os.stat_result | None = None) -> bool:
         return False
 
 
-def _report(handler: BadEntryHandler | None, path: Path, reason: str) -> None:
+def _report(handler: _BadEntryHandler | None, path: Path, reason: str) -> None:
     if handler is not None:
         handler(path, reason)
     else:
@@ -162,18 +162,18 @@ def _report(handler: BadEntryHandler | None, path: Path, reason: str) -> None:
 
 
 def _load_arrays(path: Path) -> dict[str, NDArray[np.generic]]:
-    """Every array of the entry, read without pickle; any failure is a :class:`BadEntry`."""
+    """Every array of the entry, read without pickle; any failure is a :class:`_BadEntry`."""
     try:
         data = np.load(path, allow_pickle=False)
         if not isinstance(data, np.lib.npyio.NpzFile):
-            raise BadEntry("is not an .npz archive")
+            raise _BadEntry("is not an .npz archive")
         with data:
             return {name: np.asarray(data[name]) for name in data.files}
-    except BadEntry:
+    except _BadEntry:
         raise
     except Exception as exc:  # zip, zlib and npy readers raise many types on damaged files
         text = " ".join(str(exc).split())[:160]
-        raise BadEntry(f"is unreadable ({type(exc).__name__}: {text})") from None
+        raise _BadEntry(f"is unreadable ({type(exc).__name__}: {text})") from None
 
 
 def _checked(
@@ -183,22 +183,22 @@ def _checked(
     expected.update(f"{kind}/{g}" for g in groupings for kind in ("features", "status"))
     missing, extra = sorted(expected - set(arrays)), sorted(set(arrays) - expected)
     if missing or extra:
-        raise BadEntry(f"has other arrays (missing {missing}, unexpected {extra})")
+        raise _BadEntry(f"has other arrays (missing {missing}, unexpected {extra})")
     readable: NDArray[np.bool_] = _array(arrays, "readable", "b", (n,)).astype(bool, copy=False)
     features = {g: _array(arrays, f"features/{g}", "f", (n, width)) for g in groupings}
     status = {g: _array(arrays, f"status/{g}", "U", (n,)) for g in groupings}
     for g, values in status.items():
-        odd = sorted(set(np.unique(values).tolist()) - STATUSES)
+        odd = sorted(set(np.unique(values).tolist()) - _STATUSES)
         if odd:
-            raise BadEntry(f"status/{g} holds unknown values {odd[:3]}")
+            raise _BadEntry(f"status/{g} holds unknown values {odd[:3]}")
         if not np.array_equal(values == "unreadable", ~readable):
-            raise BadEntry(f"status/{g} does not match 'readable'")
+            raise _BadEntry(f"status/{g} does not match 'readable'")
     seconds = float(_array(arrays, "seconds", "f", ()))
     if not (math.isnan(seconds) or 0 <= seconds < math.inf):
-        raise BadEntry(f"seconds per frame is {seconds}")
+        raise _BadEntry(f"seconds per frame is {seconds}")
     failures = _failures(_array(arrays, "failures", "U", None))
     if len(failures) != int(np.count_nonzero(~readable)):
-        raise BadEntry(f"lists {len(failures)} failures for {np.count_nonzero(~readable)} frames")
+        raise _BadEntry(f"lists {len(failures)} failures for {np.count_nonzero(~readable)} frames")
     return CachedFeatures(features, status, readable, failures, seconds)  # type: ignore[arg-type]
 
 
@@ -213,7 +213,7 @@ def _array(
     good_shape = a.ndim == 1 if shape is None else a.shape == shape
     if a.dtype.kind != kind or not good_shape:
         want = "1-D" if shape is None else str(shape)
-        raise BadEntry(f"array {name!r} is {a.dtype} {a.shape}, expected kind {kind!r} {want}")
+        raise _BadEntry(f"array {name!r} is {a.dtype} {a.shape}, expected kind {kind!r} {want}")
     return a
 
 
@@ -223,12 +223,12 @@ def _failures(texts: NDArray[np.generic]) -> list[Failure]:
         try:
             item = json.loads(text)
         except (ValueError, RecursionError):
-            raise BadEntry("a failure record is not JSON") from None
+            raise _BadEntry("a failure record is not JSON") from None
         if (
             not isinstance(item, dict)
             or set(item) != {"file", "error"}
             or not all(isinstance(v, str) for v in item.values())
         ):
-            raise BadEntry("a failure record is not {'file': str, 'error': str}")
+            raise _BadEntry("a failure record is not {'file': str, 'error': str}")
         out.append(Failure(item["file"], item["error"]))
     return out

@@ -28,9 +28,9 @@ from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet
 from qdcnn.direction import feature_cache
-from qdcnn.pipeline import GROUPINGS, FrameResult, process_frame
+from qdcnn.pipeline import FrameResult, process_frame
 from qdcnn.quantum.sampling import as_generator
-from qdcnn.vision.grouping import feature_names
+from qdcnn.vision.grouping import GROUPINGS, feature_names
 
 
 @dataclass

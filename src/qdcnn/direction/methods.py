@@ -27,6 +27,8 @@ from sklearn.base import BaseEstimator
 
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError
+from qdcnn.models.specs import HEADS, HYBRID_NETWORKS, hybrid_of
+from qdcnn.vision.grouping import GROUPINGS
 
 __all__ = [
     "GROUPINGS",
@@ -40,10 +42,7 @@ __all__ = [
     "with_head",
 ]
 
-#: Lane groupings of the paper (Sec. II-A-3), in the paper's order.
-GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
-
-Grid = dict[str, list[Any]]
+_Grid = dict[str, list[Any]]
 
 
 @dataclass(frozen=True)
@@ -82,7 +81,7 @@ class TrainingOptions:
         check_int("context", self.context, 1, 64)
 
 
-Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, Grid]]
+_Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, _Grid]]
 
 
 @dataclass(frozen=True)
@@ -115,7 +114,7 @@ class DirectionMethod:
 
     name: str
     inputs: Literal["lanes", "frames"]
-    build: Builder
+    build: _Builder
     kind: str
     grouping: str | None = None
     needs_torch: bool = False
@@ -133,7 +132,7 @@ class DirectionMethod:
 
     def estimator(
         self, config: PipelineConfig, options: TrainingOptions | None = None
-    ) -> tuple[BaseEstimator, Grid]:
+    ) -> tuple[BaseEstimator, _Grid]:
         """A fresh estimator of this method and its grid (see :attr:`build`)."""
         return self.build(config, options or TrainingOptions())
 
@@ -219,7 +218,7 @@ def _lane_columns(config: PipelineConfig) -> tuple[int, int] | None:
     return mode_columns(grouping.features, grouping.extra_features)
 
 
-def build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
     """The paper's UU-dagger rule on the two lane inputs; the grid is the angle map."""
     from qdcnn.quantum.direction import UUDirectionClassifier
 
@@ -232,7 +231,7 @@ def build_uu(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEsti
     return estimator, {"angle_map": ["arctan", "minmax"]}
 
 
-def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
     """The paper's 2-qubit VQC; the grid is the interpret map.
 
     The named feature modes (not the paper's) add the angle span (1 or 0.5) and the feature
@@ -253,15 +252,15 @@ def build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEst
         feature_columns=_lane_columns(config),
         restarts=1 if paper else 3,
     )
-    grid: Grid = {"interpret": ["min2", "mod3"]}
+    grid: _Grid = {"interpret": ["min2", "mod3"]}
     if not paper:
         grid["angle_span"] = [1.0, 0.5]
         grid["feature_map_reps"] = sorted({config.vqc.feature_map_reps, 1})
     return estimator, grid
 
 
-def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> Builder:
-    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, Grid]:
+def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> _Builder:
+    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
         from qdcnn.models.training import CNNDirectionClassifier
 
         estimator = CNNDirectionClassifier(
@@ -280,15 +279,6 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
     return build
 
 
-#: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
-HYBRIDS: dict[str, str] = {
-    "qdcnn-head": "PilotNet trunk, then a 4-qubit variational quantum head",
-    "qdcnn-uuconv": "UU-dagger fidelity convolution, PilotNet trunk, quantum head",
-    "qdcnn-quanv": "quanvolution (fixed random 4-qubit circuits), PilotNet trunk, quantum head",
-}
-TWIN_SUFFIX = "-classical"
-
-
 def with_head(names: str, head: str) -> str:
     """``names`` (a comma list) with the hybrids given the ``head`` asked for.
 
@@ -303,23 +293,23 @@ def with_head(names: str, head: str) -> str:
     >>> with_head("qdcnn-head-classical", "quantum")
     'qdcnn-head-classical'
     """
-    if head not in ("quantum", "classical", "both"):
+    if head not in (*HEADS, "both"):
         raise ParameterError("head", head, "'quantum', 'classical' or 'both'")
     out: list[str] = []
     for name in (n.strip() for n in names.split(",") if n.strip()):
-        base = name.removesuffix(TWIN_SUFFIX)
-        if head == "quantum" or base not in HYBRIDS:
+        hybrid = hybrid_of(name)
+        if head == "quantum" or hybrid is None:
             out.append(name)
             continue
         if head == "both":
-            out.append(base)
-        out.append(base + TWIN_SUFFIX)
+            out.append(hybrid.name)
+        out.append(hybrid.twin)
     return ",".join(dict.fromkeys(out))
 
 
-_CLASSIFIERS: dict[str, tuple[Builder, str]] = {
-    "uu": (build_uu, "the paper's UU-dagger rule on two lane inputs"),
-    "vqc": (build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
+_CLASSIFIERS: dict[str, tuple[_Builder, str]] = {
+    "uu": (_build_uu, "the paper's UU-dagger rule on two lane inputs"),
+    "vqc": (_build_vqc, "the paper's 2-qubit VQC (ZZ feature map + RealAmplitudes, COBYLA)"),
 }
 for _kind, (_build, _what) in _CLASSIFIERS.items():
     for _grouping in GROUPINGS:
@@ -344,26 +334,27 @@ register(
         summary="PilotNet CNN (Bojarski et al. 2016), classical baseline",
     )
 )
-for _name, _what in HYBRIDS.items():
+for _hybrid in HYBRID_NETWORKS:
     register(
         DirectionMethod(
-            _name,
+            _hybrid.name,
             "frames",
-            _cnn_builder(_name, {"head": "quantum"}),
+            _cnn_builder(_hybrid.name, {"head": "quantum"}),
             "hybrid",
             needs_torch=True,
             quantum=True,
-            summary=_what,
+            summary=_hybrid.summary,
         )
     )
     register(
         DirectionMethod(
-            _name + TWIN_SUFFIX,
+            _hybrid.twin,
             "frames",
-            _cnn_builder(_name, {"head": "classical"}),
+            _cnn_builder(_hybrid.name, {"head": "classical"}),
             "hybrid-twin",
             needs_torch=True,
-            summary=f"{_what}: its classical twin (an MLP head of the same parameter count)",
+            summary=f"{_hybrid.summary}: its classical twin (an MLP head of the same parameter "
+            "count)",
         )
     )
 register(

@@ -200,7 +200,7 @@ def _params_to_json(params: dict[str, Any]) -> dict[str, Any]:
 
 
 def _params_from_json(params: Any) -> dict[str, Any]:
-    from qdcnn.quantum.noise import parse_noise
+    from qdcnn.quantum.noise_text import parse_noise
 
     if not isinstance(params, dict):
         raise TypeError("params is not an object")

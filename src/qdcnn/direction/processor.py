@@ -1,4 +1,4 @@
-"""Today's per-frame pipeline as a :class:`~qdcnn.runtime.engine.FrameProcessor`.
+"""Today's per-frame pipeline as a :class:`~qdcnn.runtime.chunks.FrameProcessor`.
 
 :class:`LaneDirectionProcessor` runs UU-dagger shadow detection and removal, the lane stage
 and a fitted direction model on each frame, and draws the video overlay (shadow tint, lane
@@ -11,13 +11,13 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.runtime.engine import FrameOutcome
+from qdcnn.runtime.chunks import FrameOutcome
 from qdcnn.vision.grouping import LaneFeatures
 from qdcnn.vision.overlays import (
     GROUP_COLOURS,
@@ -27,6 +27,9 @@ from qdcnn.vision.overlays import (
     TEXT_COLOUR,
 )
 from qdcnn.vision.roi import polygon_pixels
+
+if TYPE_CHECKING:
+    from qdcnn.direction.model import DirectionModel
 
 
 class LaneDirectionProcessor:
@@ -49,7 +52,12 @@ class LaneDirectionProcessor:
     classes: tuple[str, ...] | None
 
     def __init__(
-        self, model: Any, *, seed: int = 0, tint: bool = True, probabilities: bool = True
+        self,
+        model: DirectionModel,
+        *,
+        seed: int = 0,
+        tint: bool = True,
+        probabilities: bool = True,
     ) -> None:
         from qdcnn.data.labels import DIRECTIONS
 

@@ -43,7 +43,7 @@ __all__ = [
     "summarise",
 ]
 
-N_CLASSES = len(DIRECTIONS)
+_N_CLASSES = len(DIRECTIONS)
 
 
 def fit_with_search(
@@ -189,7 +189,7 @@ def pooled_accuracy(
 def majority_baseline(y: NDArray[np.int64], splits: Sequence[Split]) -> float:
     """Pooled accuracy of predicting each fold's training majority class."""
     majority = [
-        np.full(len(test), np.bincount(y[train], minlength=N_CLASSES).argmax())
+        np.full(len(test), np.bincount(y[train], minlength=_N_CLASSES).argmax())
         for train, test in splits
     ]
     return pooled_accuracy(y, splits, majority)

@@ -18,13 +18,16 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from qdcnn._validation import check_int, check_optional_shots, check_seed
 from qdcnn.errors import ParameterError
 from qdcnn.runtime.reporting import Reporter
+
+if TYPE_CHECKING:
+    from qdcnn.quantum.noise import NoiseSpec
 
 __all__ = [
     "CIRCUIT_KINDS",
@@ -105,7 +108,7 @@ class CircuitSpec:
     feature_map_reps : int
         ``vqc``: repetitions of the ZZ feature map.
     noise : str or None
-        ``CHANNEL:P[,readout:E]`` (:func:`qdcnn.quantum.noise.parse_noise`).
+        ``CHANNEL:P[,readout:E]`` (:func:`qdcnn.quantum.noise_text.parse_noise`).
     shots : int or None
         Shot estimates (default: exact probabilities).
     backend : {"numpy", "aer"}
@@ -149,9 +152,9 @@ class CircuitSpec:
         if self.qasm is not None and not isinstance(self.qasm, str | os.PathLike):
             raise ParameterError("qasm", self.qasm, "a path or None")
 
-    def noise_spec(self) -> Any:
+    def noise_spec(self) -> NoiseSpec | None:
         """The parsed noise, or ``None``."""
-        from qdcnn.quantum.noise import parse_noise
+        from qdcnn.quantum.noise_text import parse_noise
 
         return None if self.noise is None else parse_noise(self.noise)
 

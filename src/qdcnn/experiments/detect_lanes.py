@@ -29,8 +29,8 @@ from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import DirectionModel
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.shadow_batch import note_shared_stems
+from qdcnn.runtime.manifest import ResumableBatch
 from qdcnn.runtime.reporting import Reporter
-from qdcnn.runtime.resume import ResumableBatch
 
 __all__ = [
     "DetectLanesResult",

@@ -21,8 +21,8 @@ from qdcnn.config import ShadowConfig
 from qdcnn.data.images import encode_mask, list_images, read_image, read_mask, write_mask
 from qdcnn.data.shadow_set import index_by_stem, load_shadow_set
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.runtime.manifest import ResumableBatch
 from qdcnn.runtime.reporting import Reporter
-from qdcnn.runtime.resume import ResumableBatch
 from qdcnn.vision.detectors import QUANTUM_DETECTORS, check_method, detect_shadows
 from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
 from qdcnn.vision.shadows import ShadowModel

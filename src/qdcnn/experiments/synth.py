@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -10,6 +11,8 @@ import numpy as np
 
 from qdcnn._validation import check_bool, check_choice, check_int, check_seed
 from qdcnn.data.labels import DIRECTIONS
+from qdcnn.errors import InputError
+from qdcnn.outputs import LOCK_NAME, OutputFolder
 
 __all__ = ["LAYOUTS", "SynthResult", "SynthSpec", "run_synth"]
 
@@ -22,7 +25,8 @@ class SynthSpec:
     """What ``qdcnn synth`` renders and where.
 
     ``layout`` is one of :data:`LAYOUTS` or ``"all"`` (each in a sub-folder of ``out``);
-    ``video`` also writes the drive as ``out/video/<preset>.mp4``.
+    ``video`` also writes the drive as ``out/video/<preset>.mp4``. A non-empty ``out`` is
+    refused unless ``force``, which replaces everything it holds.
     """
 
     out: Path
@@ -33,6 +37,7 @@ class SynthSpec:
     height: int = 160
     layout: str = "all"
     video: bool = False
+    force: bool = False
 
     def __post_init__(self) -> None:
         from qdcnn.data.synthetic import PRESETS
@@ -44,6 +49,7 @@ class SynthSpec:
         check_int("height", self.height, 16, 4320)
         check_choice("layout", self.layout, (*LAYOUTS, "all"))
         check_bool("video", self.video)
+        check_bool("force", self.force)
 
     @property
     def layouts(self) -> tuple[str, ...]:
@@ -76,8 +82,47 @@ class SynthResult:
 def run_synth(spec: SynthSpec) -> SynthResult:
     """Render the drive of ``spec`` and stream it into each requested layout.
 
-    Scenes are rendered and written one at a time, so memory does not grow with ``n``.
+    Scenes are rendered and written one at a time, so memory does not grow with ``n``. The
+    output folder is locked while it is written (a second run into it is refused), and
+    temporary files of a killed run are removed.
     """
+    folder = _locked_output(spec)
+    try:
+        return _write_drive(spec)
+    finally:
+        folder.close()
+
+
+def _locked_output(spec: SynthSpec) -> OutputFolder:
+    """``spec.out`` opened and locked: empty, or emptied when ``spec.force``."""
+    if spec.out.exists() and not spec.out.is_dir():
+        raise InputError(spec.out, "exists and is not a folder")
+    folder = OutputFolder(spec.out).open()
+    try:
+        held = [p for p in spec.out.iterdir() if p.name != LOCK_NAME]
+        if held and not spec.force:
+            raise InputError(
+                spec.out, "folder exists and is not empty: use --force to replace what it holds"
+            )
+        for path in held:
+            _remove(path)
+    except BaseException:
+        folder.close()
+        raise
+    return folder
+
+
+def _remove(path: Path) -> None:
+    try:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    except OSError as exc:
+        raise InputError(path, f"cannot remove it: {exc.strerror or exc}") from None
+
+
+def _write_drive(spec: SynthSpec) -> SynthResult:
     from qdcnn.data.synthetic import iter_drive
     from qdcnn.data.writers import (
         CarlaWriter,

@@ -21,9 +21,9 @@ from qdcnn.data.labels import LEFT, RIGHT
 require("torch", "CNN training augmentation")
 import torch  # noqa: E402
 
-FLIP_PROBABILITY = 0.5
-BRIGHTNESS_RANGE = (0.5, 1.3)
-SHADOW_PROBABILITY = 0.5
+_FLIP_PROBABILITY = 0.5
+_BRIGHTNESS_RANGE = (0.5, 1.3)
+_SHADOW_PROBABILITY = 0.5
 SHADOW_DARKNESS = (0.4, 0.8)  # factor multiplying pixels under the shadow
 
 
@@ -97,15 +97,15 @@ def augment_batch(
     n, _, h, w = images.shape
     device = images.device
     x = images.float()
-    flip = (torch.rand(n, generator=generator) < FLIP_PROBABILITY).to(device)
+    flip = (torch.rand(n, generator=generator) < _FLIP_PROBABILITY).to(device)
     x = torch.where(flip.view(n, 1, 1, 1), x.flip(-1), x)
     swapped = torch.where(labels == LEFT, RIGHT, torch.where(labels == RIGHT, LEFT, labels))
     labels = torch.where(flip, swapped, labels)
 
-    brightness = _uniform(n, *BRIGHTNESS_RANGE, generator).to(device)
+    brightness = _uniform(n, *_BRIGHTNESS_RANGE, generator).to(device)
     x = x * brightness.view(n, 1, 1, 1)
 
-    shaded = torch.rand(n, generator=generator) < SHADOW_PROBABILITY
+    shaded = torch.rand(n, generator=generator) < _SHADOW_PROBABILITY
     darkness = _uniform(n, *SHADOW_DARKNESS, generator)
     masks = shadow_masks(n, h, w, generator) & shaded.view(n, 1, 1)
     factor = torch.where(masks, darkness.view(n, 1, 1), torch.ones(()))

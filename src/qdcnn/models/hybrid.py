@@ -36,20 +36,20 @@ from qdcnn.models.quantum_layers import (
     RingMLPHead,
     UUConv2d,
 )
+from qdcnn.models.specs import HEADS, HYBRID_NETWORKS
 from qdcnn.quantum.noise import NoiseSpec
 
 require("torch", "the hybrid quantum networks")
 import torch  # noqa: E402
 from torch import nn  # noqa: E402
 
-HEADS = ("quantum", "classical")
 #: PilotNet's input size (rows, columns)
-INPUT_SIZE = (66, 200)
+_INPUT_SIZE = (66, 200)
 
 
 def pilotnet_trunk(
     in_channels: int = 3,
-    input_size: tuple[int, int] = INPUT_SIZE,
+    input_size: tuple[int, int] = _INPUT_SIZE,
     *,
     drop_first_conv: bool = False,
     dropout: float = 0.3,
@@ -85,7 +85,7 @@ def pilotnet_trunk(
     return nn.Sequential(features, *dense), last.out_features
 
 
-def make_head(
+def _make_head(
     head: str,
     in_features: int,
     *,
@@ -132,7 +132,7 @@ class HybridNet(nn.Module):
         return out
 
 
-class IntensityUUConv(nn.Module):
+class _IntensityUUConv(nn.Module):
     """:class:`UUConv2d` on the Y plane of each of ``K`` stacked YUV frames, same size.
 
     ``(B, 3 K, H, W)`` scaled YUV -> ``(B, K n_centroids, H, W)`` fidelities; the frames
@@ -160,13 +160,13 @@ def qdcnn_head(
     in_channels: int = 3,
     head: str = "quantum",
     *,
-    input_size: tuple[int, int] = INPUT_SIZE,
+    input_size: tuple[int, int] = _INPUT_SIZE,
     dropout: float = 0.3,
     **head_options: Any,
 ) -> HybridNet:
     """``qdcnn-head``: PilotNet trunk -> quantum head (or its twin)."""
     trunk, features = pilotnet_trunk(in_channels, input_size, dropout=dropout)
-    return HybridNet(None, trunk, make_head(head, features, **head_options))
+    return HybridNet(None, trunk, _make_head(head, features, **head_options))
 
 
 def qdcnn_uuconv(
@@ -175,7 +175,7 @@ def qdcnn_uuconv(
     *,
     n_centroids: int = 4,
     kernel_size: int = 3,
-    input_size: tuple[int, int] = INPUT_SIZE,
+    input_size: tuple[int, int] = _INPUT_SIZE,
     dropout: float = 0.3,
     **head_options: Any,
 ) -> HybridNet:
@@ -185,11 +185,11 @@ def qdcnn_uuconv(
     trunk's activations grow until the head's ``tanh`` saturates and nothing trains
     (measured on the lean-line toy of the tests: 0.33 accuracy without, 0.66 with).
     """
-    front = IntensityUUConv(in_channels, n_centroids, kernel_size)
+    front = _IntensityUUConv(in_channels, n_centroids, kernel_size)
     channels = front.frames * n_centroids
     trunk, features = pilotnet_trunk(channels, input_size, dropout=dropout)
     normalised = nn.Sequential(front, nn.BatchNorm2d(channels))
-    return HybridNet(normalised, trunk, make_head(head, features, **head_options))
+    return HybridNet(normalised, trunk, _make_head(head, features, **head_options))
 
 
 def qdcnn_quanv(
@@ -198,7 +198,7 @@ def qdcnn_quanv(
     *,
     quanv_layers: int = 1,
     quanv_seed: int = 42,
-    input_size: tuple[int, int] = INPUT_SIZE,
+    input_size: tuple[int, int] = _INPUT_SIZE,
     dropout: float = 0.3,
     **head_options: Any,
 ) -> HybridNet:
@@ -213,13 +213,13 @@ def qdcnn_quanv(
     half = (input_size[0] // 2, input_size[1] // 2)
     trunk, features = pilotnet_trunk(4 * in_channels, half, drop_first_conv=True, dropout=dropout)
     normalised = nn.Sequential(front, nn.BatchNorm2d(4 * in_channels))
-    return HybridNet(normalised, trunk, make_head(head, features, **head_options))
+    return HybridNet(normalised, trunk, _make_head(head, features, **head_options))
 
 
+#: The builder of each hybrid network, by name (the table is
+#: :data:`qdcnn.models.specs.HYBRID_NETWORKS`).
 HYBRIDS: dict[str, Callable[..., HybridNet]] = {
-    "qdcnn-head": qdcnn_head,
-    "qdcnn-uuconv": qdcnn_uuconv,
-    "qdcnn-quanv": qdcnn_quanv,
+    h.name: globals()[h.builder] for h in HYBRID_NETWORKS
 }
 
 

@@ -18,21 +18,27 @@ This module imports without torch; torch is loaded when a network is built.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from qdcnn._optional import require
 from qdcnn._validation import check_int, check_seed
 from qdcnn.errors import ParameterError
-from qdcnn.models.specs import PILOTNET_INPUT, RESNET50_INPUT, InputSpec
+from qdcnn.models.specs import (
+    HYBRID_NETWORKS,
+    PILOTNET_INPUT,
+    RESNET50_INPUT,
+    InputSpec,
+)
 
 if TYPE_CHECKING:
     from torch import nn
 
 #: ``factory(in_channels, num_classes, **kw)`` returning a freshly initialised network.
-NetworkFactory = Callable[..., "nn.Module"]
+_NetworkFactory = Callable[..., "nn.Module"]
 
 
 @dataclass(frozen=True)
@@ -55,7 +61,7 @@ class NetworkEntry:
         Smallest training batch (2 for networks with BatchNorm).
     """
 
-    factory: NetworkFactory
+    factory: _NetworkFactory
     input_spec: InputSpec
     weights_name: str
     weights_skip: tuple[str, ...] = ()
@@ -74,7 +80,7 @@ def _resnet50(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
     return resnet50(num_classes=num_classes, in_channels=in_channels, **kw)
 
 
-def _hybrid(name: str) -> NetworkFactory:
+def _hybrid(name: str) -> _NetworkFactory:
     def build(in_channels: int, num_classes: int, **kw: Any) -> nn.Module:
         from qdcnn.models.hybrid import build_hybrid
 
@@ -92,30 +98,28 @@ NETWORKS: dict[str, NetworkEntry] = {
         weights_skip=("fc.",),
         min_batch_size=2,
     ),
-    # the hybrid QDCNN networks (PilotNet trunk; ``network_params={"head": "classical"}``
-    # gives the classical twin with the same number of parameters)
-    "qdcnn-head": NetworkEntry(_hybrid("qdcnn-head"), PILOTNET_INPUT, "qdcnn qdcnn-head"),
-    "qdcnn-uuconv": NetworkEntry(
-        _hybrid("qdcnn-uuconv"), PILOTNET_INPUT, "qdcnn qdcnn-uuconv", min_batch_size=2
-    ),
-    "qdcnn-quanv": NetworkEntry(
-        _hybrid("qdcnn-quanv"), PILOTNET_INPUT, "qdcnn qdcnn-quanv", min_batch_size=2
-    ),
+    # the hybrids (PilotNet trunk; ``network_params={"head": "classical"}`` gives the twin)
+    **{
+        h.name: NetworkEntry(
+            _hybrid(h.name), PILOTNET_INPUT, f"qdcnn {h.name}", min_batch_size=h.min_batch_size
+        )
+        for h in HYBRID_NETWORKS
+    },
 }
 
 
-def register_network(name: str, entry: NetworkEntry, *, overwrite: bool = False) -> None:
+def register_network(name: str, entry: NetworkEntry, *, replace: bool = False) -> None:
     """Add ``entry`` to :data:`NETWORKS` under ``name``.
 
     Raises
     ------
     ParameterError
-        ``name`` is empty, not a string, or already registered (unless ``overwrite``).
+        ``name`` is empty, not a string, or already registered (unless ``replace``).
     """
     if not isinstance(name, str) or not name.strip():
         raise ParameterError("name", name, "a non-empty network name")
-    if name in NETWORKS and not overwrite:
-        raise ParameterError("name", name, "a name not registered yet (pass overwrite=True)")
+    if name in NETWORKS and not replace:
+        raise ParameterError("name", name, "a name not registered yet (pass replace=True)")
     NETWORKS[name] = entry
 
 
@@ -144,7 +148,9 @@ def network_entry(arch: object) -> NetworkEntry:
 def input_spec(arch: str, crop: tuple[float, float] | None = None) -> InputSpec:
     """Preprocessing of ``arch``, optionally with another crop (rows as fractions of the height)."""
     spec = network_entry(arch).input_spec
-    return spec if crop is None else replace(spec, crop=(float(crop[0]), float(crop[1])))
+    if crop is None:
+        return spec
+    return dataclasses.replace(spec, crop=(float(crop[0]), float(crop[1])))
 
 
 def build_network(

@@ -5,7 +5,7 @@ A direction-classifier file (kind :data:`MODEL_KIND`, format version
 their ``state_dict`` names, and the header ``meta`` the caller gives (for
 :class:`~qdcnn.models.training.CNNDirectionClassifier`: architecture, estimator
 params, class names, input spec, history, best epoch). A training checkpoint
-(kind :data:`CHECKPOINT_KIND`) adds the optimiser's state: its tensors as arrays
+(kind :data:`_CHECKPOINT_KIND`) adds the optimiser's state: its tensors as arrays
 ``optimizer.state.<param index>.<name>``, its parameter groups and the
 learning-rate scheduler's state as JSON. Nothing is ever unpickled
 (:func:`qdcnn.persistence.load_model` refuses pickle and torch files).
@@ -33,8 +33,8 @@ from torch import nn  # noqa: E402
 
 MODEL_KIND = "qdcnn-cnn-direction-classifier"
 MODEL_FORMAT_VERSION = 2
-CHECKPOINT_KIND = "qdcnn-cnn-training-checkpoint"
-CHECKPOINT_FORMAT_VERSION = 1
+_CHECKPOINT_KIND = "qdcnn-cnn-training-checkpoint"
+_CHECKPOINT_FORMAT_VERSION = 1
 _MODEL_PREFIX = "model."
 _OPTIMIZER_PREFIX = "optimizer.state."
 # Header field listing the 0-d arrays (BatchNorm's num_batches_tracked, AdamW's step): they
@@ -171,6 +171,25 @@ def spec_from_meta(value: object, path: str | os.PathLike[str]) -> InputSpec:
     return InputSpec((float(crop[0]), float(crop[1])), size[0], size[1], colour)  # type: ignore[index, arg-type]
 
 
+def history_from_meta(
+    meta: Mapping[str, Any], path: str | os.PathLike[str]
+) -> tuple[list[dict[str, Any]], int]:
+    """The training history and best epoch a header stores, checked.
+
+    Raises
+    ------
+    InputError
+        ``history`` is not a list of epoch records, or ``best_epoch`` not one of its epochs.
+    """
+    history = meta.get("history", [])
+    if not isinstance(history, list) or not all(isinstance(h, dict) for h in history):
+        raise InputError(path, "header field 'history' is not a list of epoch records")
+    best = meta.get("best_epoch", 0)
+    if isinstance(best, bool) or not isinstance(best, int) or not 0 <= best <= len(history):
+        raise InputError(path, f"header best_epoch {best!r} is not an epoch of its history")
+    return history, best
+
+
 # ---------------------------------------------------------------- checkpoints
 def save_checkpoint(
     path: str | os.PathLike[str],
@@ -179,7 +198,7 @@ def save_checkpoint(
     meta: Mapping[str, Any],
     scheduler: torch.optim.lr_scheduler.LRScheduler | None = None,
 ) -> Path:
-    """Write network, optimiser (and scheduler) state as a :data:`CHECKPOINT_KIND` file.
+    """Write network, optimiser (and scheduler) state as a :data:`_CHECKPOINT_KIND` file.
 
     The optimiser's per-parameter tensors (AdamW's ``step``, ``exp_avg``,
     ``exp_avg_sq``) become arrays; its parameter groups (learning rate, betas, ...),
@@ -204,7 +223,7 @@ def save_checkpoint(
         },
         "scheduler": None if scheduler is None else scheduler.state_dict(),
     }
-    return _save(path, CHECKPOINT_KIND, CHECKPOINT_FORMAT_VERSION, header, arrays)
+    return _save(path, _CHECKPOINT_KIND, _CHECKPOINT_FORMAT_VERSION, header, arrays)
 
 
 def load_checkpoint(
@@ -228,7 +247,7 @@ def load_checkpoint(
         Not a checkpoint, weights that do not fit ``network``, or optimiser state
         of another optimiser class or parameter count.
     """
-    meta, arrays = _load(path, CHECKPOINT_KIND, CHECKPOINT_FORMAT_VERSION)
+    meta, arrays = _load(path, _CHECKPOINT_KIND, _CHECKPOINT_FORMAT_VERSION)
     model = {
         k.removeprefix(_MODEL_PREFIX): v for k, v in arrays.items() if k.startswith(_MODEL_PREFIX)
     }

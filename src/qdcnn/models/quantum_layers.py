@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._optional import require
-from qdcnn._validation import check_float, check_int, check_optional_shots
+from qdcnn._validation import check_float, check_int, check_optional_shots, check_shape, has_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
@@ -110,7 +110,7 @@ class QuantumHead(nn.Module):
         self._shot_rng = np.random.default_rng(shot_seed)
         self.set_noise(noise)
 
-    def set_noise(self, noise: Any) -> None:
+    def set_noise(self, noise: NoiseSpec | None) -> None:
         """Run the circuit under ``noise`` from now on (``None``: noise-free).
 
         Channel noise (:class:`~qdcnn.quantum.noise.NoiseSpec`) runs on the PyTorch
@@ -285,10 +285,7 @@ class UUConv2d(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(B, K, H', W')`` fidelities for ``(B, C, H, W)`` values in ``[0, 1]``."""
-        if x.ndim != 4 or x.shape[1] != self.in_channels:
-            raise ParameterError(
-                "x", f"shape {tuple(x.shape)}", f"(B, {self.in_channels}, H, W) values"
-            )
+        check_shape("x", x, f"B,{self.in_channels},H,W", f"(B, {self.in_channels}, H, W) values")
         means = F.avg_pool2d(
             x, self.kernel_size, self.stride, self.padding, count_include_pad=False
         )
@@ -385,7 +382,7 @@ class Quanvolution2d(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(B, 4 C, H/2, W/2)`` expectations for ``(B, C, H, W)`` pixel values."""
-        if x.ndim != 4 or x.shape[1] != self.in_channels or min(x.shape[2:]) < 2:
+        if not has_shape(x, f"B,{self.in_channels},H,W") or min(x.shape[2:]) < 2:
             raise ParameterError(
                 "x", f"shape {tuple(x.shape)}", f"(B, {self.in_channels}, H >= 2, W >= 2)"
             )

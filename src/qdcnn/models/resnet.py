@@ -20,10 +20,10 @@ require("torch", "the ResNet-50 model")
 import torch  # noqa: E402
 from torch import nn  # noqa: E402
 
-RESNET50_LAYERS: tuple[int, int, int, int] = (3, 4, 6, 3)
+_RESNET50_LAYERS: tuple[int, int, int, int] = (3, 4, 6, 3)
 
 
-class Bottleneck(nn.Module):
+class _Bottleneck(nn.Module):
     """1x1 reduce, 3x3 (carrying the stride), 1x1 expand by 4, plus the shortcut."""
 
     expansion = 4
@@ -66,7 +66,7 @@ class ResNet(nn.Module):
 
     def __init__(
         self,
-        layers: tuple[int, int, int, int] = RESNET50_LAYERS,
+        layers: tuple[int, int, int, int] = _RESNET50_LAYERS,
         num_classes: int = 1000,
         in_channels: int = 3,
     ) -> None:
@@ -81,7 +81,7 @@ class ResNet(nn.Module):
         self.layer3 = self._make_layer(256, layers[2], stride=2)
         self.layer4 = self._make_layer(512, layers[3], stride=2)
         self.avgpool = nn.AdaptiveAvgPool2d((1, 1))
-        self.fc = nn.Linear(512 * Bottleneck.expansion, num_classes)
+        self.fc = nn.Linear(512 * _Bottleneck.expansion, num_classes)
         for m in self.modules():  # torchvision's initialisation
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
@@ -91,16 +91,16 @@ class ResNet(nn.Module):
 
     def _make_layer(self, planes: int, blocks: int, stride: int = 1) -> nn.Sequential:
         downsample = None
-        if stride != 1 or self.inplanes != planes * Bottleneck.expansion:
+        if stride != 1 or self.inplanes != planes * _Bottleneck.expansion:
             downsample = nn.Sequential(
                 nn.Conv2d(
-                    self.inplanes, planes * Bottleneck.expansion, 1, stride=stride, bias=False
+                    self.inplanes, planes * _Bottleneck.expansion, 1, stride=stride, bias=False
                 ),
-                nn.BatchNorm2d(planes * Bottleneck.expansion),
+                nn.BatchNorm2d(planes * _Bottleneck.expansion),
             )
-        stage = [Bottleneck(self.inplanes, planes, stride, downsample)]
-        self.inplanes = planes * Bottleneck.expansion
-        stage += [Bottleneck(self.inplanes, planes) for _ in range(1, blocks)]
+        stage = [_Bottleneck(self.inplanes, planes, stride, downsample)]
+        self.inplanes = planes * _Bottleneck.expansion
+        stage += [_Bottleneck(self.inplanes, planes) for _ in range(1, blocks)]
         return nn.Sequential(*stage)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -120,4 +120,4 @@ def resnet50(num_classes: int = 1000, in_channels: int = 3) -> ResNet:
     >>> tuple(model.state_dict()["layer4.2.bn3.running_var"].shape)
     (2048,)
     """
-    return ResNet(RESNET50_LAYERS, num_classes=num_classes, in_channels=in_channels)
+    return ResNet(_RESNET50_LAYERS, num_classes=num_classes, in_channels=in_channels)

@@ -25,7 +25,7 @@ from qdcnn.errors import InputError
 N_CLASSES = len(DIRECTIONS)
 #: Steering added to the left camera's frames and taken from the right camera's (the
 #: usual Udacity-simulator value, in the recording's steering unit).
-SIDE_CAMERA_CORRECTION = 0.2
+_SIDE_CAMERA_CORRECTION = 0.2
 
 
 def context_windows(n: int, context: int) -> NDArray[np.int64]:
@@ -93,7 +93,7 @@ def side_camera_views(
     steering: ArrayLike,
     label_fn: Callable[[NDArray[np.float64]], ArrayLike],
     *,
-    correction: float = SIDE_CAMERA_CORRECTION,
+    correction: float = _SIDE_CAMERA_CORRECTION,
 ) -> tuple[ExtraView, ExtraView]:
     """Left and right camera frames as extra training views with corrected labels.
 

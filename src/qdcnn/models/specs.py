@@ -44,3 +44,72 @@ PILOTNET_INPUT = InputSpec(crop=ROAD_CROP, height=66, width=200, colour="yuv")
 # frame (320x75) is stretched vertically to a square, as in the usual transfer-learning
 # recipes, so the pretrained receptive fields see a 224-pixel-high road.
 RESNET50_INPUT = InputSpec(crop=ROAD_CROP, height=224, width=224, colour="imagenet")
+
+
+#: The heads a hybrid network takes: its quantum head, or the classical twin of equal size.
+HEADS: tuple[str, str] = ("quantum", "classical")
+#: A hybrid's classical twin is named after it with this suffix (method, progress label).
+_TWIN_SUFFIX = "-classical"
+
+
+@dataclass(frozen=True)
+class HybridNetwork:
+    """One hybrid QDCNN network: its name, its builder and what it is.
+
+    Each hybrid is a registered network (:data:`qdcnn.models.networks.NETWORKS`) and two
+    direction methods: the hybrid itself (``head="quantum"``) and its classical twin
+    (``head="classical"``, named :attr:`twin`), which swaps the quantum head for an MLP of
+    the same parameter count.
+
+    Attributes
+    ----------
+    name : str
+        The network's name, which is also its quantum method's.
+    builder : str
+        The function of :mod:`qdcnn.models.hybrid` that builds it.
+    summary : str
+        One line for listings and reports.
+    min_batch_size : int
+        Smallest training batch (2 for networks with BatchNorm).
+    """
+
+    name: str
+    builder: str
+    summary: str
+    min_batch_size: int = 1
+
+    @property
+    def twin(self) -> str:
+        """The name of its classical twin."""
+        return self.name + _TWIN_SUFFIX
+
+
+#: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
+HYBRID_NETWORKS: tuple[HybridNetwork, ...] = (
+    HybridNetwork(
+        "qdcnn-head", "qdcnn_head", "PilotNet trunk, then a 4-qubit variational quantum head"
+    ),
+    HybridNetwork(
+        "qdcnn-uuconv",
+        "qdcnn_uuconv",
+        "UU-dagger fidelity convolution, PilotNet trunk, quantum head",
+        min_batch_size=2,
+    ),
+    HybridNetwork(
+        "qdcnn-quanv",
+        "qdcnn_quanv",
+        "quanvolution (fixed random 4-qubit circuits), PilotNet trunk, quantum head",
+        min_batch_size=2,
+    ),
+)
+
+
+def hybrid_of(name: str) -> HybridNetwork | None:
+    """The hybrid that ``name`` (a hybrid's name or its twin's) belongs to, else ``None``."""
+    base = name.removesuffix(_TWIN_SUFFIX)
+    return next((h for h in HYBRID_NETWORKS if h.name == base), None)
+
+
+def network_label(arch: str, head: object = None) -> str:
+    """The name a network trained with ``head`` goes by: a classical twin says so."""
+    return arch + _TWIN_SUFFIX if head == "classical" else arch

@@ -34,6 +34,7 @@ from qdcnn._validation import (
     check_float,
     check_int,
     check_seed,
+    has_shape,
 )
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.models.samples import N_CLASSES, class_weights, context_windows, split_train_val
@@ -63,7 +64,7 @@ __all__ = [
 StepCallback = Callable[[int, int], None]
 #: ``on_epoch(record, epochs)`` after every epoch, ``record`` as in :attr:`TrainResult.history`.
 EpochCallback = Callable[[Mapping[str, Any], int], None]
-DEVICES = "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
+_DEVICES = "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
 
 
 def default_threads() -> int:
@@ -83,7 +84,7 @@ def resolve_device(name: object) -> torch.device:
         Not a device string, or a CUDA device on a machine without one.
     """
     if not isinstance(name, str) or not name:
-        raise ParameterError("device", name, DEVICES)
+        raise ParameterError("device", name, _DEVICES)
     if name == "auto":
         if torch.cuda.is_available():
             return torch.device("cuda")
@@ -92,7 +93,7 @@ def resolve_device(name: object) -> torch.device:
     try:
         device = torch.device(name)
     except (RuntimeError, ValueError):
-        raise ParameterError("device", name, DEVICES) from None
+        raise ParameterError("device", name, _DEVICES) from None
     if device.type == "cuda" and not torch.cuda.is_available():
         raise ParameterError("device", name, "a device present here (no CUDA GPU found)")
     return device
@@ -170,7 +171,7 @@ class TrainSettings:
         if self.num_threads is not None:
             check_int("num_threads", self.num_threads, 1, 4096)
         if not isinstance(self.device, str) or not self.device:
-            raise ParameterError("device", self.device, DEVICES)
+            raise ParameterError("device", self.device, _DEVICES)
         return replace(
             self,
             epochs=check_int("epochs", self.epochs, 1, 100_000),
@@ -220,7 +221,7 @@ class FrameSamples:
         return cls(frames, windows, y)
 
     def __post_init__(self) -> None:
-        if self.windows.ndim != 2 or len(self.windows) != len(self.labels):
+        if not has_shape(self.windows, f"{len(self.labels)},W"):
             raise InputError(
                 "samples",
                 f"{tuple(self.windows.shape)} windows for {tuple(self.labels.shape)} labels",

@@ -30,10 +30,15 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
-from qdcnn._validation import check_bool, check_choice, check_int
+from qdcnn._validation import check_bool, check_choice, check_input_shape, check_int, has_shape
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.models.networks import NETWORKS, NetworkEntry, input_spec, network_entry
+from qdcnn.models.networks import (
+    NETWORKS,
+    NetworkEntry,
+    input_spec,
+    network_entry,
+)
 from qdcnn.models.samples import (
     N_CLASSES,
     ExtraView,
@@ -41,6 +46,8 @@ from qdcnn.models.samples import (
     context_windows,
     split_train_val,
 )
+from qdcnn.models.specs import network_label
+from qdcnn.quantum.noise import GateNoise, is_noise
 
 if TYPE_CHECKING:
     import torch
@@ -58,11 +65,9 @@ __all__ = [
     "split_train_val",
 ]
 
-#: The built-in networks; ``arch`` takes any name registered in :data:`NETWORKS`.
-Arch = Literal["pilotnet", "resnet50"]
 #: Networks a classifier can train (the registry's names when this module was imported).
 ARCHS: tuple[str, ...] = tuple(NETWORKS)
-MAX_CONTEXT = 64
+_MAX_CONTEXT = 64
 
 
 def _torch(purpose: str) -> Any:
@@ -81,7 +86,7 @@ def _as_images(
             raise InputError(
                 source, "expected a uint8 array (N, H, W, 3) or a list of equal-size frames"
             ) from None
-    if arr.dtype != np.uint8 or arr.ndim != 4 or arr.shape[-1] != 3 or 0 in arr.shape:
+    if arr.dtype != np.uint8 or not has_shape(arr, "N,H,W,3") or 0 in arr.shape:
         raise InputError(
             source,
             f"expected a non-empty uint8 RGB array of shape (N, H, W, 3), "
@@ -92,8 +97,7 @@ def _as_images(
 
 def _as_labels(labels: ArrayLike, n: int, source: str = "labels") -> NDArray[np.int64]:
     y = np.asarray(labels)
-    if y.ndim != 1 or len(y) != n:
-        raise InputError(source, f"expected {n} labels (one per image), got shape {y.shape}")
+    check_input_shape(source, y, str(n), f"{n} labels (one per image)")
     if y.dtype.kind == "f" and np.all(np.isfinite(y)) and np.all(y == np.round(y)):
         y = y.astype(np.int64)
     if y.dtype.kind not in "iu" or np.any((y < 0) | (y >= N_CLASSES)):
@@ -146,25 +150,25 @@ def _plain_params(params: dict[str, Any]) -> dict[str, Any]:
             return str(v)
         if isinstance(v, tuple):
             return list(v)
-        if hasattr(v, "label") and hasattr(v, "is_ideal"):  # a noise model: by its label
+        if is_noise(v):  # a noise model: by its label
             return None if v.is_ideal else v.label()
         return v
 
     return {k: plain(v) for k, v in params.items()}
 
 
-def _as_noise(name: str, value: Any) -> Any:
+def _as_noise(name: str, value: object) -> GateNoise | None:
     """``value`` as a noise model: ``None``, a noise object, or its text (parsed)."""
-    if value is None or (hasattr(value, "label") and hasattr(value, "is_ideal")):
+    if value is None or is_noise(value):
         return value
     if isinstance(value, str):
-        from qdcnn.quantum.noise import parse_noise
+        from qdcnn.quantum.noise_text import parse_noise
 
         return parse_noise(value)
     raise ParameterError(name, value, "None, a noise model or its text (depolarizing:0.1)")
 
 
-def _set_quantum_noise(network: Any, noise: Any, name: str) -> None:
+def _set_quantum_noise(network: Any, noise: GateNoise | None, name: str) -> None:
     """Put ``noise`` on every quantum layer of ``network``; refuse noise without one."""
     layers = [m for m in network.modules() if hasattr(m, "set_noise")]
     if noise is not None and not layers:
@@ -331,8 +335,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         crop: tuple[float, float] | None = None,
         context: int = 1,
         network_params: Mapping[str, Any] | None = None,
-        noise: Any = None,
-        train_noise: Any = None,
+        noise: GateNoise | str | None = None,
+        train_noise: GateNoise | str | None = None,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -391,7 +395,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         if self.weights is not None and not isinstance(self.weights, str | os.PathLike):
             raise ParameterError("weights", self.weights, "a weights file path or None")
         _check_crop(self.crop)
-        check_int("context", self.context, 1, MAX_CONTEXT)
+        check_int("context", self.context, 1, _MAX_CONTEXT)
         _check_network_params(self.network_params)
         _as_noise("noise", self.noise)
         _as_noise("train_noise", self.train_noise)
@@ -402,8 +406,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     def _label(self) -> str:
         """The network's name on the progress bar; a hybrid's classical twin says so."""
-        twin = self._network_kw().get("head") == "classical"
-        return f"{self.arch}-classical" if twin else self.arch
+        return network_label(self.arch, self._network_kw().get("head"))
 
     def _threads(self) -> int:
         from qdcnn.models.trainer import default_threads
@@ -495,7 +498,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     # -------------------------------------------------------------- inference
     def predict_proba(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.float64]:
         """Class probabilities ``(N, 3)`` for left, straight, right.
 
@@ -541,7 +544,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         return normalise(stacked.reshape(b, k * c, h, w).to(self.device_), self.input_spec_)
 
     def predict(
-        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: Any = None
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
         :meth:`predict_proba`)."""
@@ -615,44 +618,35 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         Path
             The file written (atomically: never half-written).
         """
-        check_is_fitted(self, "model_")
         from qdcnn.models.persistence import save_network
 
-        meta = {
-            **self._meta(self.input_spec_, self.context_),
-            "history": self.history_,
-            "best_epoch": self.best_epoch_,
-        }
-        return save_network(path, self.model_, meta)
+        return save_network(path, self.model_, self._fitted_meta())
 
     def fitted_state(self) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
         """Header fields and weight arrays for a direction model file (:mod:`qdcnn.persistence`)."""
-        check_is_fitted(self, "model_")
-        from qdcnn.models.persistence import json_safe, state_arrays
+        from qdcnn.models.persistence import state_arrays
 
-        meta = {
+        return self._fitted_meta(), state_arrays(self.model_)
+
+    def _fitted_meta(self) -> dict[str, Any]:
+        """The header of a model file: settings, input spec, history and best epoch."""
+        check_is_fitted(self, "model_")
+        from qdcnn.models.persistence import json_safe
+
+        return {
             **self._meta(self.input_spec_, self.context_),
             "history": json_safe(self.history_),
             "best_epoch": self.best_epoch_,
         }
-        return meta, state_arrays(self.model_)
 
     def load_fitted_state(
         self, meta: dict[str, Any], arrays: dict[str, NDArray[Any]], source: str | os.PathLike[str]
     ) -> None:
         """Rebuild the network from :meth:`fitted_state`'s output (names and shapes checked)."""
-        _torch("loading a CNN direction classifier")
-        from qdcnn.models.networks import build_network
-        from qdcnn.models.persistence import load_state_arrays, spec_from_meta
-
         if not isinstance(meta, dict) or meta.get("architecture") != self.arch:
             raise InputError(source, f"the weights are not those of a {self.arch!r} network")
         self._checked()
-        spec = spec_from_meta(meta.get("input_spec"), source)
-        network = build_network(self.arch, 3 * int(self.context), seed=0, **self._network_kw())
-        load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
-        history, best_epoch = _history_from_meta(meta, source)
-        self._set_fitted(network, spec, history, best_epoch)
+        self._restore(meta, arrays, source)
 
     @classmethod
     def load(
@@ -675,20 +669,28 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             or its header and weights disagree (architecture, names, shapes).
         """
         _torch("loading a CNN direction classifier")
-        from qdcnn.models.networks import build_network
-        from qdcnn.models.persistence import load_state_arrays, read_network_file, spec_from_meta
+        from qdcnn.models.persistence import read_network_file
 
         meta, arrays = read_network_file(path)
         clf = _classifier_from_meta(cls, meta, path, device)
-        spec = spec_from_meta(meta.get("input_spec"), path)
-        try:
-            network = build_network(clf.arch, 3 * int(clf.context), seed=0, **clf._network_kw())
-        except ParameterError as exc:
-            raise InputError(path, f"saved settings are invalid: {exc}") from None
-        load_state_arrays(network, arrays, path, name=f"qdcnn {clf.arch}")
-        history, best_epoch = _history_from_meta(meta, path)
-        clf._set_fitted(network, spec, history, best_epoch)
+        clf._restore(meta, arrays, path)
         return clf
+
+    def _restore(
+        self, meta: dict[str, Any], arrays: dict[str, NDArray[Any]], source: str | os.PathLike[str]
+    ) -> None:
+        """Rebuild the trained network from a model file's header and arrays (settings checked)."""
+        _torch("loading a CNN direction classifier")
+        from qdcnn.models.networks import build_network
+        from qdcnn.models.persistence import history_from_meta, load_state_arrays, spec_from_meta
+
+        spec = spec_from_meta(meta.get("input_spec"), source)
+        try:
+            network = build_network(self.arch, 3 * int(self.context), seed=0, **self._network_kw())
+        except ParameterError as exc:
+            raise InputError(source, f"saved settings are invalid: {exc}") from None
+        load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
+        self._set_fitted(network, spec, *history_from_meta(meta, source))
 
 
 def _classifier_from_meta(
@@ -727,18 +729,6 @@ def _classifier_from_meta(
             path, f"header in_channels {in_channels!r} but context {clf.context} (3 per frame)"
         )
     return clf
-
-
-def _history_from_meta(
-    meta: dict[str, Any], path: str | os.PathLike[str]
-) -> tuple[list[dict[str, Any]], int]:
-    history = meta.get("history", [])
-    if not isinstance(history, list) or not all(isinstance(h, dict) for h in history):
-        raise InputError(path, "header field 'history' is not a list of epoch records")
-    best = meta.get("best_epoch", 0)
-    if isinstance(best, bool) or not isinstance(best, int) or not 0 <= best <= len(history):
-        raise InputError(path, f"header best_epoch {best!r} is not an epoch of its history")
-    return history, best
 
 
 def _as_view(view: object, shape: tuple[int, ...]) -> ExtraView:

@@ -24,10 +24,10 @@ from torch import nn  # noqa: E402
 # safetensors itself refuses headers over 100 MB
 _MAX_SAFETENSORS_HEADER = 100_000_000
 # BatchNorm's step counter: absent from older torchvision files and irrelevant to inference.
-OPTIONAL_SUFFIXES: tuple[str, ...] = (".num_batches_tracked",)
+_OPTIONAL_SUFFIXES: tuple[str, ...] = (".num_batches_tracked",)
 
 
-def read_weights_file(path: str | os.PathLike[str]) -> object:
+def _read_weights_file(path: str | os.PathLike[str]) -> object:
     """Unpickle a PyTorch file safely (tensors, dicts, lists and numbers only).
 
     Raises
@@ -53,7 +53,7 @@ def read_weights_file(path: str | os.PathLike[str]) -> object:
         ) from None
 
 
-def is_safetensors_file(path: str | os.PathLike[str]) -> bool:
+def _is_safetensors_file(path: str | os.PathLike[str]) -> bool:
     """Whether ``path`` starts like a safetensors file: a little-endian header length, then ``{``.
 
     A truncated safetensors file still counts (it then fails to read with a safetensors
@@ -70,7 +70,7 @@ def is_safetensors_file(path: str | os.PathLike[str]) -> bool:
     return start[8:9] == b"{" and header_len < _MAX_SAFETENSORS_HEADER
 
 
-def read_safetensors_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+def _read_safetensors_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
     """All tensors of a safetensors file, on the CPU.
 
     Raises
@@ -90,11 +90,11 @@ def read_safetensors_file(path: str | os.PathLike[str]) -> dict[str, torch.Tenso
         raise InputError(p, f"not a readable safetensors file ({reason})") from None
 
 
-def read_state_dict(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
-    """The ``state_dict`` in a safetensors or PyTorch weights file (see :func:`as_state_dict`)."""
-    if is_safetensors_file(path):
-        return as_state_dict(read_safetensors_file(path), path)
-    return as_state_dict(read_weights_file(path), path)
+def _read_state_dict(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+    """The ``state_dict`` in a safetensors or PyTorch weights file (see :func:`_as_state_dict`)."""
+    if _is_safetensors_file(path):
+        return _as_state_dict(_read_safetensors_file(path), path)
+    return _as_state_dict(_read_weights_file(path), path)
 
 
 def _check_exists(p: Path) -> None:
@@ -106,7 +106,7 @@ def _check_exists(p: Path) -> None:
         raise InputError(p, "empty file (0 bytes)")
 
 
-def as_state_dict(obj: object, path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+def _as_state_dict(obj: object, path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
     """Extract a ``state_dict`` from what a weights file held.
 
     Accepts a plain ``state_dict``, a training checkpoint holding one under
@@ -173,7 +173,7 @@ def check_state_dict(
     """
     expected = {k: v for k, v in model.state_dict().items() if not k.startswith(skip_prefixes)}
     given = {k: v for k, v in state.items() if not k.startswith(skip_prefixes)}
-    missing = [k for k in expected if k not in given and not k.endswith(OPTIONAL_SUFFIXES)]
+    missing = [k for k in expected if k not in given and not k.endswith(_OPTIONAL_SUFFIXES)]
     unexpected = [k for k in given if k not in expected]
     problems = []
     if missing:
@@ -244,6 +244,6 @@ def load_weights(
     ...
     qdcnn.errors.InputError: missing.pth: file not found
     """
-    state = inflate_input_channels(read_state_dict(path), model)
+    state = inflate_input_channels(_read_state_dict(path), model)
     checked = check_state_dict(state, model, path, name=name, skip_prefixes=skip_prefixes)
     model.load_state_dict(checked, strict=False)

@@ -6,6 +6,7 @@
 ``torchsim``       the differentiable PyTorch simulator (the ``dnn`` extra)
 ``execute``        one entry point: NumPy or Aer, exact or with shots
 ``noise``          the Kraus channels and the noise protocol
+``noise_text``     noise models from their text form (``parse_noise``)
 ``device``         a real device's calibrated noise (offline fake backends)
 ``uu_dagger``      the paper's UU-dagger fidelity test
 ``direction``      the UU-dagger direction rule as a scikit-learn classifier
@@ -23,7 +24,8 @@ __getattr__, __dir__, __all__ = attach(
         "circuits": ["CircuitBatch", "CircuitBuilder", "uu_dagger_circuit", "vqc_circuit"],
         "simulator": ["statevector", "density_matrix", "probabilities"],
         "execute": ["run_probabilities"],
-        "noise": ["NoiseSpec", "parse_noise", "CHANNELS", "PAPER_CHANNELS"],
+        "noise": ["NoiseSpec", "CHANNELS", "PAPER_CHANNELS"],
+        "noise_text": ["parse_noise"],
         "device": ["DeviceNoise"],
         "uu_dagger": ["fidelity"],
         "direction": ["UUDirectionClassifier"],

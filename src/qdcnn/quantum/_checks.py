@@ -1,40 +1,37 @@
 """Input checks that only quantum code needs (the generic ones are in :mod:`qdcnn._validation`).
 
-A noise argument is accepted by what it does, not by its class: a
-:class:`~qdcnn.quantum.noise.NoiseSpec`, or any noise object that says whether it is
-ideal and names itself (``is_ideal`` and ``label()``, which every noise model of
-:mod:`qdcnn.quantum` has, device noise included), so that new noise models are taken
-wherever a ``NoiseSpec`` is.
+A noise argument is accepted by what it does, not by its class: any object that follows
+the :class:`~qdcnn.quantum.noise.GateNoise` protocol (:func:`~qdcnn.quantum.noise.is_noise`;
+a :class:`~qdcnn.quantum.noise.NoiseSpec`, device noise, or a new noise model), so that new
+noise models are taken wherever a ``NoiseSpec`` is.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from sklearn.utils.validation import check_is_fitted
 
+from qdcnn._validation import has_shape
 from qdcnn.errors import ParameterError
-from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.noise import is_noise
 
 __all__ = ["check_fitted_models", "check_noise", "is_noise", "shared_noise"]
 
-
-def is_noise(value: object) -> bool:
-    """Whether ``value`` is a noise model: a NoiseSpec, or an object with ``is_ideal`` and
-    a callable ``label``."""
-    if isinstance(value, NoiseSpec):
-        return True
-    return hasattr(value, "is_ideal") and callable(getattr(value, "label", None))
+#: a noise argument's declared type (``NoiseSpec | None``, ``GateNoise | None``, ...)
+N = TypeVar("N")
 
 
-def check_noise(noise: object, name: str = "noise") -> Any:
-    """Return ``noise`` if it is ``None`` or a noise model (:func:`is_noise`), else raise.
+def check_noise(noise: N, name: str = "noise") -> N:
+    """Return ``noise`` (typed as given) if it is ``None`` or a noise model
+    (:func:`is_noise`), else raise.
 
     Examples
     --------
+    >>> from qdcnn.quantum.noise import NoiseSpec
     >>> check_noise(NoiseSpec("bit-flip", 0.1)).label()
     'bit-flip:0.1'
     >>> check_noise("bit-flip:0.1")  # doctest: +ELLIPSIS
@@ -42,14 +39,11 @@ def check_noise(noise: object, name: str = "noise") -> Any:
     ...
     qdcnn.errors.ParameterError: noise='bit-flip:0.1' is invalid: a noise model ...
     """
-    if noise is not None and not is_noise(noise):
-        raise ParameterError(
-            name,
-            noise,
-            "a noise model (qdcnn.quantum.noise.NoiseSpec or one with "
-            "is_ideal and label()) or None",
-        )
-    return noise
+    if noise is None or is_noise(noise):
+        return noise
+    raise ParameterError(
+        name, noise, "a noise model (a qdcnn.quantum.noise.GateNoise such as NoiseSpec) or None"
+    )
 
 
 def check_fitted_models(
@@ -68,13 +62,13 @@ def check_fitted_models(
             )
         check_is_fitted(estimator)
         idx = np.asarray(rows)
-        if idx.ndim != 1 or not (idx.size == 0 or np.issubdtype(idx.dtype, np.integer)):
+        if not has_shape(idx, "N") or not (idx.size == 0 or np.issubdtype(idx.dtype, np.integer)):
             raise ParameterError(f"models[{i}] rows", f"<{idx.dtype} {idx.shape}>", "row indices")
         out.append((idx.astype(np.intp), estimator))
     return out
 
 
-def shared_noise(estimators: Sequence[Any], noise: object) -> Any:
+def shared_noise(estimators: Sequence[Any], noise: N | None) -> N | None:
     """The one noise of a batched run: ``noise`` if given, else the estimators' own ``noise``
     (which must then be the same for all)."""
     if noise is not None:

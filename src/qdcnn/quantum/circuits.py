@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from qdcnn._validation import check_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates
 
@@ -349,8 +350,7 @@ class CircuitTemplate:
             ("weights", weights, self.num_weights),
         ):
             a = np.zeros((0,)) if value is None and size == 0 else np.asarray(value, np.float64)
-            if a.ndim not in (1, 2) or a.shape[-1] != size:
-                raise ParameterError(label, f"shape {a.shape}", f"({size},) or (B, {size})")
+            check_shape(label, a, f"{size}|B,{size}", f"({size},) or (B, {size})")
             parts.append(np.atleast_2d(a))
         rows = {p.shape[0] for p in parts if p.shape[0] != 1}
         if len(rows) > 1:
@@ -481,8 +481,7 @@ def real_amplitudes(
     """
     w = np.asarray(weights, dtype=np.float64)
     n = 2 * (reps + 1)
-    if w.shape[-1] != n:
-        raise ParameterError("weights", f"shape {w.shape}", f"{n} angles for reps={reps}")
+    check_shape("weights", w, f"*,{n}", f"{n} angles for reps={reps}")
     for r in range(reps + 1):
         if r:
             builder.cx(0, 1)
@@ -492,10 +491,9 @@ def real_amplitudes(
 
 def feature_pairs(x: ArrayLike) -> NDArray[np.float64]:
     """The VQC's input as a float array of shape ``(B, 2)``; one pair may be given flat."""
-    xa = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    if xa.ndim != 2 or xa.shape[1] != 2:
-        raise ParameterError("x", f"shape {np.shape(x)}", "two features per sample, shape (B, 2)")
-    return xa
+    xa = np.asarray(x, dtype=np.float64)
+    check_shape("x", xa, "2|B,2", "two features per sample, shape (B, 2)")
+    return np.atleast_2d(xa)
 
 
 def vqc_circuit(

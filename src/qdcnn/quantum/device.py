@@ -244,6 +244,53 @@ def _readout_errors(backend: Any, model: str) -> list[tuple[list[int], Any]]:
     return list(basic_device_readout_errors(target=backend.target))
 
 
+def _native_two_qubit_gates(backend: Any, class_name: str) -> list[str]:
+    """The backend's native two-qubit gate (a list of one; none on a one-qubit device),
+    refusing a backend without native ``rz``, ``sx``, ``x`` and exactly one of ``cx``,
+    ``ecr``, ``cz``."""
+    ops = set(backend.target.operation_names)
+    two_qubit = [g for g in NATIVE_TWO_QUBIT if g in ops]
+    if (
+        any(g not in ops for g in NATIVE_ONE_QUBIT)
+        or len(two_qubit) > 1
+        or (backend.num_qubits > 1 and not two_qubit)
+    ):
+        raise ParameterError(
+            "device",
+            class_name,
+            "a backend with native rz, sx, x and one of cx, ecr, cz (this one has "
+            f"{', '.join(sorted(ops))})",
+        )
+    return two_qubit
+
+
+_GateTable = dict[tuple[str, tuple[int, ...]], float]
+
+
+def _gate_properties(target: Any, native: tuple[str, ...]) -> tuple[_GateTable, _GateTable]:
+    """Duration (seconds) and error of every calibrated native gate, by ``(gate, qubits)``."""
+    ops = set(target.operation_names)
+    durations: _GateTable = {}
+    gate_errs: _GateTable = {}
+    for g in native:
+        for qargs, prop in target[g].items() if g in ops else ():
+            if prop is not None and qargs is not None:
+                durations[(g, tuple(qargs))] = float(prop.duration or 0.0)
+                gate_errs[(g, tuple(qargs))] = float(prop.error or 0.0)
+    return durations, gate_errs
+
+
+def _readout_matrices(backend: Any, model: str) -> dict[int, NDArray[np.float64]]:
+    """Read-only ``A[measured, prepared]`` per qubit of the readout ``model`` (none: empty)."""
+    readout_mats = {
+        int(q[0]): np.asarray(err.probabilities, dtype=np.float64).T
+        for q, err in _readout_errors(backend, model)
+    }
+    for a in readout_mats.values():
+        a.setflags(write=False)
+    return readout_mats
+
+
 @lru_cache(maxsize=16)
 def load_calibration(
     name: str,
@@ -272,39 +319,16 @@ def load_calibration(
     fake_provider = require("qiskit_ibm_runtime", "device noise").fake_provider
     backend = getattr(fake_provider, class_name)()
     target = backend.target
-    ops = set(target.operation_names)
-    two_qubit = [g for g in NATIVE_TWO_QUBIT if g in ops]
-    if (
-        any(g not in ops for g in NATIVE_ONE_QUBIT)
-        or len(two_qubit) > 1
-        or (backend.num_qubits > 1 and not two_qubit)
-    ):
-        raise ParameterError(
-            "device",
-            class_name,
-            "a backend with native rz, sx, x and one of cx, ecr, cz (this one has "
-            f"{', '.join(sorted(ops))})",
-        )
+    two_qubit = _native_two_qubit_gates(backend, class_name)
     gate2 = two_qubit[0] if two_qubit else ""
     native = (*NATIVE_ONE_QUBIT, *two_qubit)
     errors = basic_device_gate_errors(
         target=target, gate_error=gate_error, thermal_relaxation=thermal_relaxation
     )
     aer_errors = {(g, tuple(q)): e for g, q, e in errors if g in native}
-    durations: dict[tuple[str, tuple[int, ...]], float] = {}
-    gate_errs: dict[tuple[str, tuple[int, ...]], float] = {}
-    for g in native:
-        for qargs, prop in target[g].items() if g in ops else ():
-            if prop is not None and qargs is not None:
-                durations[(g, tuple(qargs))] = float(prop.duration or 0.0)
-                gate_errs[(g, tuple(qargs))] = float(prop.error or 0.0)
+    durations, gate_errs = _gate_properties(target, native)
     coupling = frozenset(tuple(q) for q in target[gate2] if q is not None) if gate2 else frozenset()
-    readout_mats = {
-        int(q[0]): np.asarray(err.probabilities, dtype=np.float64).T
-        for q, err in _readout_errors(backend, readout)
-    }
-    for a in readout_mats.values():
-        a.setflags(write=False)
+    readout_mats = _readout_matrices(backend, readout)
     props = target.qubit_properties or [None] * backend.num_qubits
     return DeviceCalibration(
         name=class_name,

@@ -73,8 +73,8 @@ from qdcnn._validation import (
     check_optional_shots,
     check_seed,
 )
+from qdcnn.classes import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.config import DirectionConfig
-from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError
 from qdcnn.quantum._checks import check_fitted_models, check_noise, shared_noise
 from qdcnn.quantum.circuits import uu_dagger_circuit

@@ -7,10 +7,11 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_shots
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import as_generator, check_shots, sample_probabilities
+from qdcnn.quantum.sampling import as_generator, sample_probabilities
 from qdcnn.quantum.simulator import probabilities
 
 Backend = Literal["numpy", "aer"]

@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from qdcnn.errors import ParameterError
+from qdcnn._validation import check_shape
 
 Matrix = NDArray[np.complex128] | NDArray[np.float64]
 
@@ -81,8 +81,7 @@ def rot(angles: ArrayLike) -> Matrix:
     phase ``e^{-i(phi+omega)/2}``.
     """
     a = np.asarray(angles, dtype=np.float64)
-    if a.ndim < 1 or a.shape[-1] != 3:
-        raise ParameterError("rot angles", f"shape {a.shape}", "three angles on the last axis")
+    check_shape("rot angles", a, "*,3", "three angles on the last axis")
     phi, theta, omega = a[..., 0], a[..., 1], a[..., 2]
     c, s = np.cos(theta / 2), np.sin(theta / 2)
     plus, minus = np.exp(-0.5j * (phi + omega)), np.exp(0.5j * (phi - omega))

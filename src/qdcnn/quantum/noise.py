@@ -41,11 +41,12 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, TypeGuard, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_probability
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.gates import I2, X, Y, Z
 
@@ -140,14 +141,6 @@ def check_channel(name: str) -> str:
     return name
 
 
-def check_probability(name: str, p: float) -> float:
-    """Return ``p`` as float if it is in [0, 1], else raise :class:`ParameterError`."""
-    number = isinstance(p, int | float) and not isinstance(p, bool)
-    if not number or not math.isfinite(p) or not 0 <= p <= 1:
-        raise ParameterError(name, p, "a probability in [0, 1]")
-    return float(p)
-
-
 def kraus_operators(channel: str, p: float) -> Kraus:
     """Kraus operators of ``channel`` at strength ``p``, shape ``(k, 2, 2)``."""
     return CHANNELS[check_channel(channel)](check_probability("p", p))
@@ -195,6 +188,12 @@ class GateNoise(Protocol):
     def label(self) -> str:
         """Short text that names the noise, e.g. ``depolarizing:0.1``."""
         ...
+
+
+def is_noise(value: object) -> TypeGuard[GateNoise]:
+    """Whether ``value`` is a noise model: an object that follows :class:`GateNoise`
+    (:class:`NoiseSpec`, device noise, or any other class with its members)."""
+    return isinstance(value, GateNoise)
 
 
 @dataclass(frozen=True)
@@ -264,38 +263,3 @@ class NoiseSpec:
         if self.readout:
             parts.append(f"readout:{self.readout:g}")
         return ",".join(parts) or "ideal"
-
-
-def parse_noise(text: str) -> NoiseSpec:
-    """Parse ``"CHANNEL:P"`` (optionally ``",readout:E"``) into a :class:`NoiseSpec`.
-
-    ``"device:NAME"`` (options ``,layout:0-1-2``, ``,route:swap``,
-    ``,readout:asymmetric|symmetric|none``) gives the calibrated noise of an offline IBM
-    fake backend, a :class:`qdcnn.quantum.device.DeviceNoise` (a ``NoiseSpec`` subclass,
-    accepted wherever a ``NoiseSpec`` is); see :func:`qdcnn.quantum.device.parse_device_noise`.
-
-    Examples
-    --------
-    >>> parse_noise("bit-flip:0.1")
-    NoiseSpec(channel='bit-flip', p=0.1, readout=0.0)
-    """
-    if any(part.strip().partition(":")[0] == "device" for part in text.split(",")):
-        from qdcnn.quantum.device import parse_device_noise
-
-        return parse_device_noise(text)
-    channel: str | None = None
-    p = 0.0
-    readout = 0.0
-    for part in filter(None, (t.strip() for t in text.split(","))):
-        name, sep, value = part.partition(":")
-        if not sep:
-            raise ParameterError("noise", text, "CHANNEL:P, e.g. depolarizing:0.1")
-        try:
-            v = float(value)
-        except ValueError:
-            raise ParameterError("noise", text, f"a number after '{name}:'") from None
-        if name == "readout":
-            readout = v
-        else:
-            channel, p = check_channel(name), v
-    return NoiseSpec(channel, p, readout)

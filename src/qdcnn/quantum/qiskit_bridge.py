@@ -7,15 +7,18 @@ inside these functions. :func:`run_aer` submits all circuits of a batch in one
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._optional import require
+from qdcnn._validation import check_shots
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import check_shots
+
+if TYPE_CHECKING:
+    from qdcnn.quantum.device import DeviceNoise
 
 ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z", "u")
 #: the one-qubit gates a NoiseSpec channel follows in an Aer noise model (with the native sx)
@@ -82,7 +85,7 @@ def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = NOISY_ONE_QU
     return model
 
 
-def device_noise_model(noise: Any) -> Any:
+def device_noise_model(noise: DeviceNoise) -> Any:
     """The Aer ``NoiseModel`` of a ``DeviceNoise``, on the device's physical qubits.
 
     The gate errors are the ones ``NoiseModel.from_backend`` adds for the native gates

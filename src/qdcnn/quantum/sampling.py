@@ -11,19 +11,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.errors import ParameterError
+from qdcnn._validation import check_shots
 
 
 def as_generator(seed: int | np.random.Generator | None) -> np.random.Generator:
     """A :class:`numpy.random.Generator` from a seed, or the generator itself."""
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-
-
-def check_shots(shots: int) -> int:
-    """Return ``shots`` if it is a positive integer, else raise :class:`ParameterError`."""
-    if isinstance(shots, bool) or not isinstance(shots, int | np.integer) or shots < 1:
-        raise ParameterError("shots", shots, "a positive integer")
-    return int(shots)
 
 
 def sample_counts(

@@ -99,6 +99,7 @@ from qdcnn._validation import (
     check_int,
     check_optional_shots,
     check_seed,
+    check_shots,
 )
 from qdcnn.config import VQCConfig
 from qdcnn.errors import InputError, ParameterError
@@ -106,8 +107,8 @@ from qdcnn.quantum._checks import check_fitted_models, check_noise, shared_noise
 from qdcnn.quantum.circuits import CircuitBuilder, feature_pairs, real_amplitudes, vqc_circuit
 from qdcnn.quantum.direction import N_CLASSES, class_prior
 from qdcnn.quantum.execute import check_backend, run_probabilities
-from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import check_shots, sample_probabilities
+from qdcnn.quantum.noise import GateNoise, NoiseSpec
+from qdcnn.quantum.sampling import sample_probabilities
 from qdcnn.quantum.simulator import unitary
 
 INTERPRETS: dict[str, tuple[int, int, int, int]] = {
@@ -188,7 +189,7 @@ def basis_probabilities(
     return run_probabilities(circuit, shots=shots, noise=noise, backend=backend, rng=rng)
 
 
-def _runs_split(backend: str, noise: Any) -> bool:
+def _runs_split(backend: str, noise: GateNoise | None) -> bool:
     """Whether the split simulation (feature-map states, ansatz unitary) applies."""
     return backend == "numpy" and (noise is None or noise.is_ideal)
 

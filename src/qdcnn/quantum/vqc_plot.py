@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from qdcnn._validation import has_shape
 from qdcnn.errors import ParameterError
 
 _LOSS_LABELS = {"mse": "MSE (Eq. 10)", "cross_entropy": "cross-entropy (bits)"}
@@ -37,7 +38,7 @@ def plot_objective_history(
     matplotlib.axes.Axes
     """
     values = np.asarray(history, dtype=np.float64)
-    if values.ndim != 1 or values.size == 0:
+    if not has_shape(values, "N") or values.size == 0:
         raise ParameterError("history", f"<{values.size} values>", "a non-empty 1-D sequence")
     if ax is None:
         from matplotlib.figure import Figure

@@ -20,8 +20,12 @@ Tasks must be idempotent (running one twice gives the same result and writes not
 that a second run would change), because Dask runs a task again when its worker dies
 (``distributed.scheduler.allowed-failures``, 3 by default) and ``retries`` times more when
 it raises. Tasks, shared objects and results travel between processes pickled *in
-memory* by Dask; no file is ever unpickled. ``shared`` objects are sent to each worker
-once (``Client.scatter(..., broadcast=True)``), not with every task.
+memory* by Dask; no file is ever unpickled. ``shared`` objects are not sent with every
+task: each is the result of one small task that returns it (:func:`_shared_value`),
+which the tasks depend on, so each worker fetches it once, from another. Nothing a task needs
+exists only on one worker: a lost worker's copy is recomputed elsewhere from the task's
+definition, which the scheduler keeps (scattered data, by contrast, is lost with the
+last worker holding it, and every task needing it is cancelled).
 
 Without the ``dask`` extra, asking for a scheduler raises
 :class:`~qdcnn.errors.MissingExtraError` naming it.
@@ -92,6 +96,19 @@ class ExecutorStats:
             "workers": self.workers,
             "overhead_per_task_seconds": self.overhead_per_task,
         }
+
+
+@dataclass(frozen=True)
+class _Shared:
+    """An object handed to tasks, wrapped so that Dask sends it as one opaque value (a
+    dict or list would be searched for futures, item by item)."""
+
+    value: Any
+
+
+def _shared_value(shared: _Shared) -> Any:
+    """The task whose result is a shared object (recomputed if its worker is lost)."""
+    return shared.value
 
 
 @dataclass(frozen=True)
@@ -209,7 +226,8 @@ class Executor:
             env=env,
         )
         self._client = distributed.Client(self._cluster, timeout=self.timeout)
-        self._client.run(_limit_threads)
+        self._client.wait_for_workers(n, timeout=self.timeout)  # slow to register under load
+        self._client.register_worker_callbacks(_limit_threads)  # restarted workers too
 
     def _connect(self, address: str) -> None:
         distributed = require("distributed", "connecting to a Dask scheduler (--scheduler)")
@@ -271,8 +289,7 @@ class Executor:
     ) -> Iterator[tuple[T, R | TaskFailure]]:
         distributed = require("distributed", "running tasks on Dask")
         client = self._client
-        # a list of one, so that a dict or list is sent as one object, not item by item
-        handles = [client.scatter([obj], broadcast=True, hash=False)[0] for obj in shared]
+        handles = [client.submit(_shared_value, _Shared(obj), pure=False) for obj in shared]
         pending: dict[Any, T] = {}
         queue = distributed.as_completed()
         source = iter(tasks)

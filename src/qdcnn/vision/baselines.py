@@ -31,6 +31,7 @@ from skimage.filters import threshold_otsu
 from sklearn.cluster import KMeans
 
 from qdcnn._threads import single_thread
+from qdcnn._validation import check_input_shape
 from qdcnn.errors import InputError, ParameterError
 
 __all__ = ["detect_cbs", "detect_ibt", "detect_lbp", "hsi_hue_intensity", "to_grey"]
@@ -42,8 +43,7 @@ def _check_image(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
         raise InputError("image", f"expected uint8 pixels, got {arr.dtype}")
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[:, :, 0]
-    if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] == 3)):
-        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {arr.shape}")
+    check_input_shape("image", arr, "H,W,3|H,W")
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise InputError("image", f"image is empty, shape {arr.shape}")
     return arr

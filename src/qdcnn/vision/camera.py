@@ -26,7 +26,7 @@ Hood
     changes by less than 2 levels (standard deviation) across the frames, and a
     near-horizontal outline low in the frame that is at the same place in 90 % of the
     frames (a glossy bonnet reflects the scene but keeps its outline); see
-    :func:`detect_hood`.
+    :func:`_detect_hood`.
 
 :func:`camera_roi` builds the ROI from them: a trapezoid whose sides are lines through
 points ``curve_margin`` of the width either side of the vanishing point on the horizon,
@@ -58,26 +58,26 @@ from qdcnn.vision.lanes import to_grey, working_frame
 from qdcnn.vision.roi import polygon_mask
 
 #: frames :func:`sample_indices` takes by default, and the span of the recording they cover
-CAMERA_FRAMES, CAMERA_SPAN = 40, 600
+_CAMERA_FRAMES, _CAMERA_SPAN = 40, 600
 #: working width of the estimate (pixels)
-WORK_WIDTH = 320
+_WORK_WIDTH = 320
 #: segments counted as lane borders: degrees from the horizontal
-BORDER_ANGLES = (15.0, 75.0)
+_BORDER_ANGLES = (15.0, 75.0)
 #: a segment supports a vanishing point when its line passes this close (fraction of width)
-SUPPORT_TOLERANCE = 0.015
+_SUPPORT_TOLERANCE = 0.015
 #: each side's support (total segment length) needed, as a fraction of the frame height
-MIN_SUPPORT = 0.15
+_MIN_SUPPORT = 0.15
 #: a pixel is static when its grey level's standard deviation across frames is below this
-STATIC_STD = 2.0
+_STATIC_STD = 2.0
 #: columns at which the hood's top row is kept (evenly spaced, both edges included)
-HOOD_COLUMNS = 17
+_HOOD_COLUMNS = 17
 #: the ROI stops this far (fraction of the height) above the hood
-HOOD_MARGIN = 0.02
+_HOOD_MARGIN = 0.02
 _MAX_BORDERS = 40  # longest segments per side tried as proposals
 #: estimated ROI: top edge below the horizon and half-width on it (fractions of H and W)
-ROI_TOP_GAP, ROI_CURVE_MARGIN = 0.04, 0.15
+_ROI_TOP_GAP, _ROI_CURVE_MARGIN = 0.04, 0.15
 #: estimated ROI side slope per side: SCALE * (the own lane's border slope) + ADD, clipped
-ROI_SLOPE_SCALE, ROI_SLOPE_ADD, ROI_SLOPES = 1.25, 0.3, (1.0, 5.0)
+_ROI_SLOPE_SCALE, _ROI_SLOPE_ADD, _ROI_SLOPES = 1.25, 0.3, (1.0, 5.0)
 
 
 @dataclass(frozen=True)
@@ -93,7 +93,7 @@ class CameraGeometry:
     vanishing_point : (float, float)
         ``(x, y)`` of the vanishing point relative to the frame; ``y == horizon``.
     hood_rows : tuple of float or None
-        Top row of the static hood (relative) at :data:`HOOD_COLUMNS` evenly spaced
+        Top row of the static hood (relative) at :data:`_HOOD_COLUMNS` evenly spaced
         columns, 1.0 where there is none; ``None`` when no hood was found.
     roi : tuple of (x, y)
         The ROI polygon (relative), never empty.
@@ -158,7 +158,7 @@ class CameraGeometry:
 
 
 def sample_indices(
-    n_frames: int, count: int = CAMERA_FRAMES, span: int = CAMERA_SPAN
+    n_frames: int, count: int = _CAMERA_FRAMES, span: int = _CAMERA_SPAN
 ) -> NDArray[np.intp]:
     """Indices of up to ``count`` frames spread evenly over the first ``span`` of a recording.
 
@@ -238,7 +238,7 @@ def camera_roi(
         bottom_left: list[tuple[float, float]] = [(0.0, 1.0)]
         notch: list[tuple[float, float]] = []
     else:
-        rows = np.minimum(np.asarray(hood_rows, dtype=np.float64) - HOOD_MARGIN, 1.0)
+        rows = np.minimum(np.asarray(hood_rows, dtype=np.float64) - _HOOD_MARGIN, 1.0)
         xs = np.linspace(0.0, 1.0, rows.size)
         side_rows = [y for _, y in left + right] or [y_top]
         if rows.min() <= max(side_rows) + 0.01:
@@ -309,7 +309,7 @@ def border_segments(grey: NDArray[np.uint8], below_row: int = 0) -> NDArray[np.f
     flip = seg[:, 1] > seg[:, 3]
     seg[flip] = seg[flip][:, [2, 3, 0, 1]]
     angle = np.degrees(np.arctan2(seg[:, 3] - seg[:, 1], np.abs(seg[:, 2] - seg[:, 0])))
-    return seg[(angle >= BORDER_ANGLES[0]) & (angle <= BORDER_ANGLES[1])]
+    return seg[(angle >= _BORDER_ANGLES[0]) & (angle <= _BORDER_ANGLES[1])]
 
 
 @dataclass(frozen=True)
@@ -355,7 +355,7 @@ def vanishing_point(segments: NDArray[np.float64], shape: tuple[int, int]) -> Va
     if not ok.any():
         return None
     x, y = x[ok], y[ok]
-    tol = SUPPORT_TOLERANCE * w
+    tol = _SUPPORT_TOLERANCE * w
     miss = np.abs(a[None, :] * y[:, None] + b[None, :] - x[:, None])
     inlier = (miss <= tol) & (bottom[None, :] > y[:, None] + 2.0)
     support = inlier * length[None, :]
@@ -387,8 +387,8 @@ def _weighted_quantile(
     return float(values[order][min(int(np.searchsorted(cum, q * cum[-1])), values.size - 1)])
 
 
-def detect_hood(
-    greys: NDArray[np.uint8], static_std: float = STATIC_STD
+def _detect_hood(
+    greys: NDArray[np.uint8], static_std: float = _STATIC_STD
 ) -> tuple[NDArray[np.float64] | None, float, list[str]]:
     """The car's hood in a stack of grey frames of one recording: its top row per column.
 
@@ -506,8 +506,8 @@ def estimate_camera(
         raise InputError("frames", "no frames to estimate the camera from")
     notes: list[str] = []
     shape, same = _same_size_frames(frames, notes)
-    greys = np.stack([to_grey(working_frame(f, WORK_WIDTH)) for f in same])
-    hood, fraction, hood_notes = (None, 0.0, []) if len(greys) < 3 else detect_hood(greys)
+    greys = np.stack([to_grey(working_frame(f, _WORK_WIDTH)) for f in same])
+    hood, fraction, hood_notes = (None, 0.0, []) if len(greys) < 3 else _detect_hood(greys)
     notes += hood_notes
     if fraction > 0.5:
         notes.append(
@@ -582,7 +582,7 @@ def _vanishing_points(
             limit = hood[cols] * (wh - 1)
             seg = seg[(seg[:, [1, 3]] < limit - 1).all(axis=1)]
         found = vanishing_point(seg, (wh, ww)) if len(seg) else None
-        if found is not None and min(found.left_support, found.right_support) >= MIN_SUPPORT * wh:
+        if found is not None and min(found.left_support, found.right_support) >= _MIN_SUPPORT * wh:
             if hood is None or found.y < hood_top_px:
                 points.append((found.x, found.y, found.left_slope, found.right_slope))
     return points
@@ -596,11 +596,11 @@ def _estimated_roi(
     inner: NDArray[np.float64],
 ) -> tuple[tuple[float, float], ...]:
     """The ROI for an estimated vanishing point, its sides following the median inner
-    border slopes ``inner`` (left, right; the upper end of ROI_SLOPES where unknown)."""
+    border slopes ``inner`` (left, right; the upper end of _ROI_SLOPES where unknown)."""
     slopes = tuple(
-        float(np.clip(ROI_SLOPE_SCALE * v + ROI_SLOPE_ADD, *ROI_SLOPES))
+        float(np.clip(_ROI_SLOPE_SCALE * v + _ROI_SLOPE_ADD, *_ROI_SLOPES))
         if np.isfinite(v)
-        else ROI_SLOPES[1]
+        else _ROI_SLOPES[1]
         for v in inner
     )
     return camera_roi(
@@ -608,17 +608,17 @@ def _estimated_roi(
         yv,
         xv,
         hood_rows,
-        top_gap=ROI_TOP_GAP,
+        top_gap=_ROI_TOP_GAP,
         side_slope=(slopes[0], slopes[1]),
-        curve_margin=ROI_CURVE_MARGIN,
+        curve_margin=_ROI_CURVE_MARGIN,
     )
 
 
 def _sample_profile(rows: NDArray[np.float64]) -> tuple[float, ...]:
-    """The hood's top row at HOOD_COLUMNS columns: the highest row within each column band."""
+    """The hood's top row at _HOOD_COLUMNS columns: the highest row within each column band."""
     w = rows.size
-    centres = np.linspace(0, w - 1, HOOD_COLUMNS)
-    half = max(1.0, 0.5 * (w - 1) / (HOOD_COLUMNS - 1))
+    centres = np.linspace(0, w - 1, _HOOD_COLUMNS)
+    half = max(1.0, 0.5 * (w - 1) / (_HOOD_COLUMNS - 1))
     out = []
     for c in centres:
         lo, hi = int(max(0, np.floor(c - half))), int(min(w, np.ceil(c + half) + 1))

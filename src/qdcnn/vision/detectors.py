@@ -22,14 +22,14 @@ SHADOW_DETECTORS: dict[str, str] = {
     "lbp": "local binary pattern texture detector (classical baseline)",
 }
 #: The names, in registry order.
-SHADOW_METHODS: tuple[str, ...] = tuple(SHADOW_DETECTORS)
+_SHADOW_METHODS: tuple[str, ...] = tuple(SHADOW_DETECTORS)
 #: The detectors with a simulated quantum circuit.
 QUANTUM_DETECTORS = frozenset({"uu", "uu-chroma"})
 
 
 def check_method(method: str) -> str:
     """Return ``method`` if it is a known shadow detector, else raise :class:`ParameterError`."""
-    if method not in SHADOW_METHODS:
+    if method not in _SHADOW_METHODS:
         raise ParameterError("method", method, "one of " + ", ".join(SHADOW_DETECTORS))
     return method
 

@@ -77,10 +77,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
+from qdcnn._validation import has_shape
 from qdcnn.config import GroupingConfig
 from qdcnn.errors import InputError, ParameterError
 
-METHODS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
+#: The lane groupings of the paper (Sec. II-A-3), in the paper's order.
+GROUPINGS: tuple[str, ...] = ("image-split", "kmeans", "spectral")
 EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
     # x where each line crosses the bottom row, relative to the width (x / (W - 1))
     "intercepts": ("intercept_left", "intercept_right"),
@@ -99,20 +101,20 @@ EXTRA_FEATURES: dict[str, tuple[str, ...]] = {
 FAR_ROW, NEAR_ROW = 0.5, 0.9
 #: "near-vanishing-point-offset" uses the segments whose lower end is at or below this row
 NEAR_PART = 0.7
-SLOPE_NAMES: tuple[str, str] = ("slope_left", "slope_right")
+_SLOPE_NAMES: tuple[str, str] = ("slope_left", "slope_right")
 Status = Literal["ok", "one-line", "no-lines"]
 _SPECTRAL_NEIGHBOURS = 10
 #: segments fitting one line within this fraction of the width are one line (group_segments)
-MERGE_TOLERANCE = 0.03
+_MERGE_TOLERANCE = 0.03
 #: label of segments that ``inner_lines`` leaves out of both lines
 LEFT_OUT = 2
 #: inner_lines: segments whose lines cross the reference row this close (fraction of the
 #: width) belong to one line; a line needs this share of its side's segment length
-INNER_BAND, INNER_SHARE = 0.04, 0.2
+_INNER_BAND, _INNER_SHARE = 0.04, 0.2
 #: inner_lines: the reference row (relative), near the bottom where lines are far apart
-INNER_ROW = 0.9
+_INNER_ROW = 0.9
 #: inner_lines: largest dx/dy of a border leaning the wrong way for its side
-INNER_LEAN = 0.1
+_INNER_LEAN = 0.1
 
 
 @dataclass
@@ -152,7 +154,7 @@ class LaneFeatures:
     lines: list[tuple[float, float] | None]
     labels: NDArray[np.int64]
     method: str
-    feature_names: tuple[str, ...] = SLOPE_NAMES
+    feature_names: tuple[str, ...] = _SLOPE_NAMES
     shape: tuple[int, int] = (0, 0)
     middle_line: tuple[float, float] | None = field(default=None)
     segments: NDArray[np.float64] | None = field(default=None, repr=False)
@@ -161,7 +163,7 @@ class LaneFeatures:
 def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
     """Names of the feature columns for ``extra_features`` (the two slopes first)."""
     _check_extras(extra_features)
-    return SLOPE_NAMES + tuple(n for extra in extra_features for n in EXTRA_FEATURES[extra])
+    return _SLOPE_NAMES + tuple(n for extra in extra_features for n in EXTRA_FEATURES[extra])
 
 
 def mode_columns(features: str, extra_features: Sequence[str] = ()) -> tuple[int, int]:
@@ -248,7 +250,7 @@ def group_segments(
     *,
     seed: int = 0,
     extra_features: Sequence[str] = (),
-    merge_tolerance: float | None = MERGE_TOLERANCE,
+    merge_tolerance: float | None = _MERGE_TOLERANCE,
     inner_lines: bool = False,
 ) -> LaneFeatures:
     """Split segments into a left and a right group, fit a line to each, return the slopes.
@@ -291,7 +293,7 @@ def group_segments(
     >>> f.status, np.round(f.features, 3).tolist()
     ('ok', [-0.667, 0.667])
     """
-    if method not in METHODS:
+    if method not in GROUPINGS:
         raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
     names = feature_names(extra_features)
     seg, h, w = _checked_segments(segments, shape, merge_tolerance)
@@ -325,7 +327,7 @@ def _checked_segments(
     seg = np.asarray(segments, dtype=np.float64)
     if seg.size == 0:
         seg = seg.reshape(0, 4)
-    if seg.ndim != 2 or seg.shape[1] != 4 or not np.isfinite(seg).all():
+    if not has_shape(seg, "N,4") or not np.isfinite(seg).all():
         raise InputError("segments", f"expected a finite (N, 4) array, got shape {seg.shape}")
     if len(shape) < 2 or shape[0] < 1 or shape[1] < 1:
         raise InputError("shape", f"expected (H, W), got {tuple(shape)}")
@@ -389,12 +391,12 @@ def _inner_line_labels(
     """Labels with every segment but those of each side's innermost line set to LEFT_OUT.
 
     A side's border runs down and outwards (left: ``dx/dy < 0``, right: ``dx/dy > 0``, up
-    to :data:`INNER_LEAN` the other way), so segments leaning the other way (car and
+    to :data:`_INNER_LEAN` the other way), so segments leaning the other way (car and
     shadow outlines) are left out first. Per side, each remaining segment's line
-    ``x = a y + b`` is read at the row :data:`INNER_ROW` of the height; sorted by that
-    crossing, segments closer than :data:`INNER_BAND` of the width to their neighbour form
+    ``x = a y + b`` is read at the row :data:`_INNER_ROW` of the height; sorted by that
+    crossing, segments closer than :data:`_INNER_BAND` of the width to their neighbour form
     one line. The side keeps the line nearest the frame's centre among those holding at
-    least :data:`INNER_SHARE` of the side's segment length (the own lane's border: a double
+    least :data:`_INNER_SHARE` of the side's segment length (the own lane's border: a double
     centre line is one line, the far border of the other lane, a kerb or a parked car's
     outline another).
     """
@@ -403,21 +405,21 @@ def _inner_line_labels(
         return out
     dy = segments[:, 3] - segments[:, 1]
     a = (segments[:, 2] - segments[:, 0]) / np.where(dy > 1e-9, dy, np.inf)
-    cross = segments[:, 0] + a * (INNER_ROW * (h - 1) - segments[:, 1])
+    cross = segments[:, 0] + a * (_INNER_ROW * (h - 1) - segments[:, 1])
     cross = np.where(dy > 1e-9, cross, 0.5 * (segments[:, 0] + segments[:, 2]))
     length = np.hypot(segments[:, 2] - segments[:, 0], dy)
     for side in (0, 1):
-        leaning = a < INNER_LEAN if side == 0 else a > -INNER_LEAN
+        leaning = a < _INNER_LEAN if side == 0 else a > -_INNER_LEAN
         out[(labels == side) & ~leaning] = LEFT_OUT
         idx = np.flatnonzero((labels == side) & leaning)
         if idx.size < 2:
             continue
         # innermost first: the left side from the right, the right side from the left
         order = idx[np.argsort(-cross[idx] if side == 0 else cross[idx])]
-        gaps = np.abs(np.diff(cross[order])) > INNER_BAND * w
+        gaps = np.abs(np.diff(cross[order])) > _INNER_BAND * w
         line_of = np.concatenate([[0], np.cumsum(gaps)])
         weight = np.bincount(line_of, weights=length[order] + 1e-9)
-        chosen = int(np.argmax(weight >= INNER_SHARE * weight.sum()))
+        chosen = int(np.argmax(weight >= _INNER_SHARE * weight.sum()))
         out[order[line_of != chosen]] = LEFT_OUT
     return out
 

@@ -24,7 +24,7 @@ Named options (not the paper's; the defaults leave the paper's stage unchanged):
 - ``marks``: Canny runs on a mask of white and yellow markings
   (:func:`qdcnn.vision.marks.marking_mask`) instead of the grey frame.
 - ``max_segment_angle`` and ``vp_tolerance``: segments too steep, or whose line misses the
-  vanishing point, are dropped (:func:`filter_segments`).
+  vanishing point, are dropped (:func:`_filter_segments`).
 
 References
 ----------
@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_input_shape
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.marks import marking_mask_u8
@@ -54,8 +55,7 @@ def _check_frame(image: NDArray[np.uint8]) -> None:
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
         kind = getattr(image, "dtype", type(image).__name__)
         raise InputError("image", f"expected a uint8 array, got {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
-        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
+    check_input_shape("image", image, "H,W,3|H,W")
 
 
 def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -220,7 +220,7 @@ def lane_edges(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArr
     return edges
 
 
-def segments_from_edges(
+def _segments_from_edges(
     edges: NDArray[np.uint8],
     config: LaneConfig = _DEFAULT,
     frame_shape: tuple[int, ...] | None = None,
@@ -231,7 +231,7 @@ def segments_from_edges(
     which makes descriptors independent of the order OpenCV reports the ends in. When
     ``frame_shape`` (the ``(H, W)`` of the frame the edges were computed for, at another
     size) is given, the segments are scaled to its pixels (pixel centres map to pixel
-    centres). Then :func:`filter_segments` applies the angle and vanishing-point filters.
+    centres). Then :func:`_filter_segments` applies the angle and vanishing-point filters.
     """
     found = cv2.HoughLinesP(
         edges,
@@ -252,10 +252,10 @@ def segments_from_edges(
         shape = (int(frame_shape[0]), int(frame_shape[1]))
     flip = (seg[:, 1] > seg[:, 3]) | ((seg[:, 1] == seg[:, 3]) & (seg[:, 0] > seg[:, 2]))
     seg[flip] = seg[flip][:, [2, 3, 0, 1]]
-    return filter_segments(seg, shape, config)
+    return _filter_segments(seg, shape, config)
 
 
-def filter_segments(
+def _filter_segments(
     segments: NDArray[np.float64], shape: tuple[int, ...], config: LaneConfig = _DEFAULT
 ) -> NDArray[np.float64]:
     """Drop segments by angle and by position relative to the vanishing point.
@@ -317,4 +317,4 @@ def detect_segments(image: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> 
     """
     _check_frame(image)
     work = working_frame(image, config.work_width)
-    return segments_from_edges(lane_edges(work, config), config, image.shape)
+    return _segments_from_edges(lane_edges(work, config), config, image.shape)

@@ -34,17 +34,18 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_input_shape
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError, ParameterError
 
 #: OpenCV hue range (0-180 scale) counted as yellow by the "hls" selection
-YELLOW_HUE = (18, 38)
+_YELLOW_HUE = (18, 38)
 #: least brightness step (grey levels) of a marking, whatever the ratio
-MIN_STEP = 4
+_MIN_STEP = 4
 #: least step of a yellow marking above the road beside it: Lab b, HLS saturation
-YELLOW_STEP_B, YELLOW_STEP_S = 10, 40
+_YELLOW_STEP_B, _YELLOW_STEP_S = 10, 40
 #: Lab: a white marking's a and b stay within this of neutral (128)
-WHITE_CHROMA = 24
+_WHITE_CHROMA = 24
 
 
 @lru_cache(maxsize=16)
@@ -54,7 +55,7 @@ def _window(width: int, fraction: float) -> NDArray[np.uint8]:
 
 
 def _stripes(
-    channel: NDArray[np.uint8], window: NDArray[np.uint8], ratio: float, step: int = MIN_STEP
+    channel: NDArray[np.uint8], window: NDArray[np.uint8], ratio: float, step: int = _MIN_STEP
 ) -> NDArray[np.uint8]:
     """255 where above the opening (the background beside a narrow stripe) by ``ratio``.
 
@@ -102,8 +103,7 @@ def marking_mask(
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
         kind = getattr(image, "dtype", type(image).__name__)
         raise InputError("image", f"expected a uint8 array, got {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
-        raise InputError("image", f"expected shape (H, W, 3) or (H, W), got {image.shape}")
+    check_input_shape("image", image, "H,W,3|H,W")
     return marking_mask_u8(image, config, width) > 0
 
 
@@ -118,12 +118,12 @@ def marking_mask_u8(
     if config.marks == "hls":
         hue, light, sat = cv2.split(cv2.cvtColor(image, cv2.COLOR_RGB2HLS))
         white = _stripes(light, window, ratio) & cv2.compare(sat, 102, cv2.CMP_LT)
-        yellow = cv2.inRange(hue, YELLOW_HUE[0], YELLOW_HUE[1]) & _stripes(
-            sat, window, 0.0, YELLOW_STEP_S
+        yellow = cv2.inRange(hue, _YELLOW_HUE[0], _YELLOW_HUE[1]) & _stripes(
+            sat, window, 0.0, _YELLOW_STEP_S
         )
     else:
         light, a, b = cv2.split(cv2.cvtColor(image, cv2.COLOR_RGB2LAB))
-        lo, hi = 128 - WHITE_CHROMA, 128 + WHITE_CHROMA
+        lo, hi = 128 - _WHITE_CHROMA, 128 + _WHITE_CHROMA
         white = _stripes(light, window, ratio) & cv2.inRange(a, lo, hi) & cv2.inRange(b, lo, hi)
         # yellow hue: b - 128 >= 8 and b - 128 >= 4 |a - 128|
         off_a = cv2.absdiff(a, np.full_like(a, 128))
@@ -131,5 +131,5 @@ def marking_mask_u8(
         hue = cv2.compare(above, 8, cv2.CMP_GE) & cv2.compare(
             above, cv2.convertScaleAbs(off_a, alpha=4.0), cv2.CMP_GE
         )
-        yellow = hue & _stripes(b, window, 0.0, YELLOW_STEP_B)
+        yellow = hue & _stripes(b, window, 0.0, _YELLOW_STEP_B)
     return np.asarray(white | yellow, dtype=np.uint8)

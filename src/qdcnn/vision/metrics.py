@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import check_input_shape
 from qdcnn.data.images import MASK_LEVEL
 from qdcnn.errors import InputError, ParameterError
 
@@ -88,8 +89,7 @@ class ConfusionCounts:
 def as_shadow_mask(mask: NDArray[Any], *, source: str = "mask") -> NDArray[np.bool_]:
     """A 2-D ``bool`` mask from a ``bool`` one (as is) or a ``uint8`` one (``>= 128``)."""
     arr = np.asarray(mask)
-    if arr.ndim != 2:
-        raise InputError(source, f"expected a 2-D mask (H, W), got shape {arr.shape}")
+    check_input_shape(source, arr, "H,W", "a 2-D mask (H, W)")
     if arr.dtype == np.bool_:
         return arr
     if arr.dtype == np.uint8:

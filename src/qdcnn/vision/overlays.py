@@ -19,7 +19,7 @@ from qdcnn.vision.grouping import LaneFeatures
 from qdcnn.vision.roi import polygon_pixels
 
 GROUP_COLOURS: tuple[tuple[int, int, int], tuple[int, int, int]] = ((255, 140, 0), (30, 120, 255))
-LEFT_OUT_COLOUR = (150, 150, 150)  # segments in neither line (grouping's inner_lines)
+_LEFT_OUT_COLOUR = (150, 150, 150)  # segments in neither line (grouping's inner_lines)
 LINE_COLOURS: tuple[tuple[int, int, int], tuple[int, int, int]] = ((255, 210, 0), (0, 220, 255))
 MIDDLE_COLOUR = (0, 230, 0)
 ROI_COLOUR = (255, 255, 255)
@@ -93,7 +93,7 @@ def draw_lane_overlay(
     if camera is not None:
         _draw_camera(canvas, camera, (h, w), pt, thin, scale)
     for (x1, y1, x2, y2), group in zip(seg, features.labels, strict=True):
-        colour = GROUP_COLOURS[int(group)] if group in (0, 1) else LEFT_OUT_COLOUR
+        colour = GROUP_COLOURS[int(group)] if group in (0, 1) else _LEFT_OUT_COLOUR
         cv2.line(canvas, pt(x1, y1), pt(x2, y2), colour, 2 * scale, cv2.LINE_AA)
     _draw_fits(canvas, features, rows, pt, thin)
     _draw_captions(canvas, features, columns, direction, camera, h, pt, scale)

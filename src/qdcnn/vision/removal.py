@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._validation import has_shape
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.metrics import as_shadow_mask
 
@@ -82,7 +83,7 @@ def remove_shadows(
     if method not in REMOVAL_METHODS:
         raise ParameterError("method", method, "'road-fill' or 'relight'")
     img = np.asarray(image)
-    if img.dtype != np.uint8 or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
+    if img.dtype != np.uint8 or not has_shape(img, "H,W|H,W,3"):
         raise InputError(
             "image", f"expected uint8 of shape (H, W, 3) or (H, W), got {img.dtype} {img.shape}"
         )

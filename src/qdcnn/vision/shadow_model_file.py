@@ -30,13 +30,13 @@ from qdcnn._validation import check_float
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.persistence import MAX_JSON_BYTES, load_json_model, parse_json, save_json_model
 
-KIND = "qdcnn-shadow-model"
-FORMAT_VERSION = 2
+_KIND = "qdcnn-shadow-model"
+_FORMAT_VERSION = 2
 #: Most components (centroids) a multi-centroid model may have.
 MAX_COMPONENTS = 64
 #: Most features per component.
-MAX_FEATURES = 8
-FEATURE_NAMES = ("intensity", "chromaticity")
+_MAX_FEATURES = 8
+_FEATURE_NAMES = ("intensity", "chromaticity")
 _SINGLE = ("feature", "centroid", "threshold")
 _MULTI = ("features", "centroids", "thresholds")
 _FIELDS = frozenset((*_SINGLE, "provenance", *_MULTI))
@@ -44,7 +44,7 @@ _FIELDS = frozenset((*_SINGLE, "provenance", *_MULTI))
 
 def write_shadow_model(path: str | os.PathLike[str], fields: Mapping[str, Any]) -> Path:
     """Write the model ``fields`` (as :func:`read_shadow_model` returns them), atomically."""
-    return save_json_model(path, KIND, FORMAT_VERSION, dict(fields))
+    return save_json_model(path, _KIND, _FORMAT_VERSION, dict(fields))
 
 
 def read_shadow_model(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -67,20 +67,20 @@ def read_shadow_model(path: str | os.PathLike[str]) -> dict[str, Any]:
     p = Path(path)
     data = _read_json(p)
     if not isinstance(data, dict) or "kind" not in data:
-        raise InputError(p, f"not a qdcnn shadow model (no header with kind {KIND!r})")
-    if data["kind"] != KIND:
-        raise InputError(p, f"holds a {_short(data['kind'])!r}, not a {KIND!r}")
+        raise InputError(p, f"not a qdcnn shadow model (no header with kind {_KIND!r})")
+    if data["kind"] != _KIND:
+        raise InputError(p, f"holds a {_short(data['kind'])!r}, not a {_KIND!r}")
     version = data.get("format_version", 1)
     if isinstance(version, bool) or not isinstance(version, int):
         raise InputError(
-            p, f"format version {_short(version)!r} of {KIND!r} is not supported (reads 1, 2)"
+            p, f"format version {_short(version)!r} of {_KIND!r} is not supported (reads 1, 2)"
         )
     if "format_version" not in data:
         fields = {k: v for k, v in data.items() if k != "kind"}  # version 1
         if "meta" in fields:
             fields["provenance"] = fields.pop("meta")
     else:
-        fields = load_json_model(p, KIND, (FORMAT_VERSION,)).meta
+        fields = load_json_model(p, _KIND, (_FORMAT_VERSION,)).meta
     return _checked(fields, str(p))
 
 
@@ -138,7 +138,7 @@ def _multi(fields: dict[str, Any]) -> dict[str, Any]:
         return {}
     if len(present) != len(_MULTI):
         raise ParameterError(present[0], "<given>", "with all of " + ", ".join(_MULTI))
-    features = _list("features", fields["features"], 1, MAX_FEATURES)
+    features = _list("features", fields["features"], 1, _MAX_FEATURES)
     names = tuple(_feature("features", f) for f in features)
     width = len(names)
     centroids = _table("centroids", fields["centroids"], width, 255.0)
@@ -149,8 +149,8 @@ def _multi(fields: dict[str, Any]) -> dict[str, Any]:
 
 
 def _feature(name: str, value: object) -> str:
-    if not isinstance(value, str) or value not in FEATURE_NAMES:
-        raise ParameterError(name, _short(value), "one of " + ", ".join(map(repr, FEATURE_NAMES)))
+    if not isinstance(value, str) or value not in _FEATURE_NAMES:
+        raise ParameterError(name, _short(value), "one of " + ", ".join(map(repr, _FEATURE_NAMES)))
     return value
 
 

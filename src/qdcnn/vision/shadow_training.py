@@ -34,7 +34,7 @@ def block_shadow_fraction(mask: NDArray[np.bool_], config: ShadowConfig) -> NDAr
     return block_means(mask.astype(np.uint8), geometry, config.downsample)
 
 
-def train_centroid(
+def _train_centroid(
     values: NDArray[np.float64], config: ShadowConfig | None = None, start: float | None = None
 ) -> float:
     """Centroid (value units) trained on shadow values by the propagation algorithm.
@@ -70,7 +70,7 @@ def train_from_crop(
     if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
         raise ParameterError("box", box, f"x0 < x1 <= {w} and y0 < y1 <= {h} (pixels)")
     crop = feature_map(image[y0:y1, x0:x1], cfg.feature)
-    centroid = train_centroid(crop.ravel().astype(np.float64), cfg)
+    centroid = _train_centroid(crop.ravel().astype(np.float64), cfg)
     return ShadowModel(
         cfg.feature, centroid, cfg.threshold, {"trained_on": "crop", "box": list(box)}
     )
@@ -105,7 +105,7 @@ def train_shadow_model(
     shadow = f >= 0.5
     if not shadow.any():
         raise ParameterError("masks", "no shadow blocks", "at least one block that is half shadow")
-    centroid = train_centroid(v[shadow], cfg)
+    centroid = _train_centroid(v[shadow], cfg)
     threshold = cfg.threshold
     if thresholds:
         scores = fidelity(value_to_angle(centroid), value_to_angle(v), shots=None)
@@ -128,7 +128,7 @@ def halfwidth_threshold(halfwidth: float) -> float:
 
 
 #: Share of a cluster's blocks inside the starting band of each of its features.
-START_COVERAGE = 0.9
+_START_COVERAGE = 0.9
 
 #: Candidate per-feature thresholds of :func:`train_multi_shadow_model`: the bands
 #: +-2, +-6, ..., +-126 value units.
@@ -155,11 +155,11 @@ def train_multi_shadow_model(
     of it. Here the blocks that are at least half shadow are clustered by
     k-means in feature space (the paper's clustering start, Sec. II-A-1); each
     cluster's centroid is then trained per feature by the propagation algorithm
-    (:func:`train_centroid`, started at the cluster mean). Finally each
+    (:func:`_train_centroid`, started at the cluster mean). Finally each
     (component, feature) fidelity threshold is picked from ``thresholds`` by
     coordinate descent on the training set's pixel-weighted balanced error rate
     (each block counts with its shadow and non-shadow pixel fractions), starting
-    from the narrowest bands that hold :data:`START_COVERAGE` of each cluster's
+    from the narrowest bands that hold :data:`_START_COVERAGE` of each cluster's
     blocks, until no single change lowers it. Where a range of thresholds gives
     the same training error, the middle of the range is taken.
 
@@ -288,7 +288,7 @@ def _cluster_centroids(
     centroids = np.array(
         [
             [
-                train_centroid(
+                _train_centroid(
                     shadow_values[labels == j, f],
                     cfg,
                     start=float(shadow_values[labels == j, f].mean()),
@@ -310,7 +310,7 @@ def _start_thresholds(
     grid: NDArray[np.float64],
 ) -> NDArray[np.intp]:
     """Per (component, feature): the grid index of the narrowest candidate band that holds
-    :data:`START_COVERAGE` of the component's cluster."""
+    :data:`_START_COVERAGE` of the component's cluster."""
     start = np.zeros(centroids.shape, dtype=np.intp)
     for j, cluster in enumerate(order):
         for f in range(centroids.shape[1]):
@@ -319,7 +319,7 @@ def _start_thresholds(
                 value_to_angle(shadow_values[labels == cluster, f]),
                 shots=None,
             )
-            q = np.quantile(members, 1.0 - START_COVERAGE)
+            q = np.quantile(members, 1.0 - _START_COVERAGE)
             start[j, f] = max(int(np.searchsorted(grid, q, side="right")) - 1, 0)
     return start
 

@@ -165,11 +165,11 @@ def block_means(
     mean over the block's full-resolution pixels, so it is computed exactly from
     one summed-area table (:func:`cv2.integral`) without building the small image.
     """
-    sums, area = block_sums(values, geometry, downsample)
+    sums, area = _block_sums(values, geometry, downsample)
     return (sums / area).reshape(geometry.grid_shape)
 
 
-def block_sums(
+def _block_sums(
     values: NDArray[np.generic], geometry: BlockGrid, downsample: int
 ) -> tuple[NDArray[Any], NDArray[np.float64]]:
     """Sum of the full-resolution ``values`` in each block and the block's pixel count.
@@ -298,7 +298,7 @@ def _median_large(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
     return (sums > (ksize * ksize) // 2).astype(np.uint8)
 
 
-MULTI_OTSU_BINS = 32  # histogram bins of the 3- and 4-class splits (4 classes x 256 bins: ~50 ms)
+_MULTI_OTSU_BINS = 32  # histogram bins of the 3- and 4-class splits (4 classes x 256 bins: ~50 ms)
 
 
 def extreme_cluster(
@@ -309,7 +309,7 @@ def extreme_cluster(
     Two classes use Otsu's threshold on 256 bins (the optimal 1-D two-means split);
     three or four use the multi-level Otsu thresholds (Liao, Chen & Chung, "A
     fast algorithm for multilevel thresholding", J. Inf. Sci. Eng. 17, 2001;
-    :func:`skimage.filters.threshold_multiotsu`) on :data:`MULTI_OTSU_BINS`
+    :func:`skimage.filters.threshold_multiotsu`) on :data:`_MULTI_OTSU_BINS`
     bins, the maximum of the between-class variance, i.e. a deterministic
     ``classes``-means clustering of the values.
     """
@@ -324,14 +324,14 @@ def extreme_cluster(
         t = float(threshold_otsu(v, nbins=256))
         return v[v <= t] if pick == "lowest" else v[v > t]
     try:
-        ts = threshold_multiotsu(v, classes=classes, nbins=MULTI_OTSU_BINS)
+        ts = threshold_multiotsu(v, classes=classes, nbins=_MULTI_OTSU_BINS)
     except ValueError:  # fewer distinct levels than classes: fall back to two classes
         return extreme_cluster(v, 2, pick)
     part = v[v <= ts[0]] if pick == "lowest" else v[v > ts[-1]]
     return part if part.size else extreme_cluster(v, 2, pick)
 
 
-CALIBRATION_BIN = 0.25  # value units: block means are binned this finely for calibration
+_CALIBRATION_BIN = 0.25  # value units: block means are binned this finely for calibration
 
 
 def calibrate_centroid(
@@ -346,7 +346,7 @@ def calibrate_centroid(
     (``config.calibration_classes == 2``, the paper's setting) or the extreme
     class of a 3- or 4-class multi-Otsu split (:func:`extreme_cluster`). The
     propagation algorithm then starts at that cluster's mean and runs on its
-    block values, binned to :data:`CALIBRATION_BIN` value units (a histogram
+    block values, binned to :data:`_CALIBRATION_BIN` value units (a histogram
     keeps each iteration independent of the image size). Returns the centroid
     in value units.
     """
@@ -355,10 +355,10 @@ def calibrate_centroid(
         block_values, cfg.calibration_classes, "lowest" if feature == "intensity" else "highest"
     )
     start = float(cluster.mean())
-    counts = np.bincount(np.round(cluster / CALIBRATION_BIN).astype(np.intp))
+    counts = np.bincount(np.round(cluster / _CALIBRATION_BIN).astype(np.intp))
     levels = np.flatnonzero(counts)
     res = propagate_centroid(
-        value_to_angle(levels * CALIBRATION_BIN),
+        value_to_angle(levels * _CALIBRATION_BIN),
         float(value_to_angle(start)),
         iterations=cfg.propagation_iterations,
         tol=cfg.propagation_tol,
@@ -590,7 +590,7 @@ def detect_shadows_uu(
         cfg = replace(cfg, feature=model.feature, threshold=model.threshold)  # type: ignore[arg-type]
     values = feature_input(image, cfg.feature)
     geometry = block_grid(values.shape[:2], cfg.downsample, cfg.grid)
-    sums, area = block_sums(values, geometry, cfg.downsample)
+    sums, area = _block_sums(values, geometry, cfg.downsample)
     blocks = (sums / area).reshape(geometry.grid_shape)
     centroid, source = _centroid_of(cfg, model, blocks)
     lookup = None

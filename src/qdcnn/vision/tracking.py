@@ -4,7 +4,7 @@ The paper decides every frame alone (Alg. 2). In a recording the lane lines move
 from one frame to the next, so a line lost in one frame (a car in front of it, a worn
 marking, glare) can be carried from the last frames, and a fit thrown off by clutter can be
 recognised as a jump. :class:`LaneTracker` keeps, per side, the line's x at two rows
-(:data:`TRACK_ROWS` of the height) and updates them with each frame's fit:
+(:data:`_TRACK_ROWS` of the height) and updates them with each frame's fit:
 
 ``"ema"``
     An exponential moving average, ``state += alpha * (measured - state)``.
@@ -39,15 +39,15 @@ from qdcnn.config import GroupingConfig
 from qdcnn.vision.grouping import LaneFeatures, Status, feature_values
 
 #: rows (relative to the height) at which a line's x is tracked
-TRACK_ROWS = (0.5, 0.95)
+_TRACK_ROWS = (0.5, 0.95)
 #: an "ema" measurement this far (fraction of the width) from the track is an outlier
 GATE = 0.15
 #: "kalman": random acceleration and measurement noise, as fractions of the width
-KALMAN_Q, KALMAN_R = 0.003, 0.02
+_KALMAN_Q, _KALMAN_R = 0.003, 0.02
 #: "kalman": squared Mahalanobis distance beyond which a measurement is rejected (chi2, 2 dof)
-KALMAN_GATE = 13.8
+_KALMAN_GATE = 13.8
 
-Line = tuple[float, float]
+_Line = tuple[float, float]
 
 
 @dataclass
@@ -99,8 +99,8 @@ class LaneTracker:
             self.reset()
             self._shape = lanes.shape
         h, w = lanes.shape
-        rows = (TRACK_ROWS[0] * (h - 1), TRACK_ROWS[1] * (h - 1))
-        lines: list[Line | None] = []
+        rows = (_TRACK_ROWS[0] * (h - 1), _TRACK_ROWS[1] * (h - 1))
+        lines: list[_Line | None] = []
         for side, line in zip(self._sides, lanes.lines, strict=True):
             measured = None if line is None else _to_points(line, rows)
             state = self._step(side, measured, w)
@@ -139,7 +139,7 @@ def _kalman_step(
     eye = np.eye(2)
     transition = np.block([[eye, eye], [np.zeros((2, 2)), eye]])
     observe = np.hstack([eye, np.zeros((2, 2))])
-    q, r = (KALMAN_Q * w) ** 2, (KALMAN_R * w) ** 2
+    q, r = (_KALMAN_Q * w) ** 2, (_KALMAN_R * w) ** 2
     noise = q * np.block([[0.25 * eye, 0.5 * eye], [0.5 * eye, eye]])
     if side.state is None or side.cov is None:
         if measured is None:
@@ -153,7 +153,7 @@ def _kalman_step(
     if measured is not None:
         innovation = measured - observe @ x
         s = observe @ p @ observe.T + r * eye
-        if float(innovation @ np.linalg.solve(s, innovation)) <= KALMAN_GATE:
+        if float(innovation @ np.linalg.solve(s, innovation)) <= _KALMAN_GATE:
             gain = p @ observe.T @ np.linalg.inv(s)
             side.state = x + gain @ innovation
             side.cov = (np.eye(4) - gain @ observe) @ p
@@ -172,18 +172,18 @@ def _kalman_step(
     return np.asarray(x[:2])
 
 
-def _to_points(line: Line, rows: tuple[float, float]) -> NDArray[np.float64]:
+def _to_points(line: _Line, rows: tuple[float, float]) -> NDArray[np.float64]:
     a, b = line
     return np.array([a * rows[0] + b, a * rows[1] + b])
 
 
-def _to_line(points: NDArray[np.float64], rows: tuple[float, float]) -> Line:
+def _to_line(points: NDArray[np.float64], rows: tuple[float, float]) -> _Line:
     a = float(points[1] - points[0]) / (rows[1] - rows[0])
     return a, float(points[0]) - a * rows[0]
 
 
 def _with_lines(
-    lanes: LaneFeatures, lines: list[Line | None], config: GroupingConfig
+    lanes: LaneFeatures, lines: list[_Line | None], config: GroupingConfig
 ) -> LaneFeatures:
     """``lanes`` with tracked lines: status, middle line and features recomputed."""
     h, w = lanes.shape

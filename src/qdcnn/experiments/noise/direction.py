@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from sklearn.base import clone
 
 from qdcnn._threads import single_thread
-from qdcnn._validation import check_optional_shots, check_probability
+from qdcnn._validation import check_optional_shots, has_shape
 from qdcnn.config import PipelineConfig
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method, method_names
 from qdcnn.direction.protocol import (
@@ -142,6 +142,19 @@ def sweep_targets(methods: Sequence[str], groupings: Sequence[str]) -> list[Swee
             if t not in out:
                 out.append(t)
     return out
+
+
+def _noise_aware_build(
+    target: SweepTarget,
+    config: PipelineConfig,
+    training: TrainingOptions | None,
+    train_under_noise: bool,
+) -> _Fresh:
+    """The target's estimator and grid (as fresh clones for the folds), refused when the
+    estimator cannot be evaluated (or trained) under noise."""
+    estimator, grid = target.method.estimator(config, training)
+    _check_noise_aware(target, estimator, train_under_noise)
+    return _Fresh(estimator, grid)
 
 
 def _check_noise_aware(target: SweepTarget, estimator: Any, train_under_noise: bool) -> None:
@@ -287,64 +300,113 @@ def direction_sweep(
     list of SweepRow
         Ordered by method (kinds expanded over the groupings), channel, then p.
     """
-    cfg = config or PipelineConfig()
-    check_grid(channels, strengths)
-    check_probability("readout", readout)
+    cfg = replace(config or PipelineConfig(), seed=seed)
+    check_grid(channels, strengths, readout)
     check_optional_shots(shots)
-    labels = np.asarray(y, dtype=np.int64)
-    if groupings is None:
-        groupings = [g for g in features if g != FRAMES]
-    targets = sweep_targets(methods, groupings)
+    data = _SweepData.of(features, y, methods, groupings, folds, gap)
+    labels, truth, majority = data.labels, data.truth, data.majority
+    grid_points = [(channel, float(p)) for channel in channels for p in strengths]
+    rows: list[SweepRow] = []
+    with single_thread():
+        for target in data.targets:
+            X = data.inputs[target.inputs]
+            build = _noise_aware_build(target, cfg, training, train_under_noise)
+            fitted = _fit_folds(build, X, data, gap, inner_folds, executor)
+            point = _SweepPoint(
+                target, X, labels, truth, majority, readout, shots, seed, train_under_noise
+            )
+            rows += _run_points(point, grid_points, fitted, executor, on_step)
+    return rows
+
+
+@dataclass(frozen=True)
+class _SweepData:
+    """What every method of a sweep shares: labels, targets and their inputs, outer folds."""
+
+    labels: NDArray[np.int64]
+    targets: list[SweepTarget]
+    inputs: dict[str, NDArray[Any]]
+    splits: list[tuple[NDArray[np.intp], NDArray[np.intp]]]
+    truth: NDArray[np.int64]  # the test labels of the folds, concatenated
+    majority: float
+
+    @classmethod
+    def of(
+        cls,
+        features: Mapping[str, ArrayLike],
+        y: ArrayLike,
+        methods: Sequence[str],
+        groupings: Sequence[str] | None,
+        folds: int,
+        gap: int,
+    ) -> _SweepData:
+        labels = np.asarray(y, dtype=np.int64)
+        if groupings is None:
+            groupings = [g for g in features if g != FRAMES]
+        targets = sweep_targets(methods, groupings)
+        inputs = _target_inputs(features, targets, labels.size)
+        splits = list(ContiguousKFold(folds, gap).split(labels))
+        truth = np.concatenate([labels[test] for _, test in splits])
+        return cls(labels, targets, inputs, splits, truth, majority_baseline(labels, splits))
+
+
+def _fit_folds(
+    build: _Fresh, X: NDArray[Any], data: _SweepData, gap: int, inner_folds: int, executor: Any
+) -> list[tuple[NDArray[np.intp], NDArray[np.intp], Any]]:
+    """``(train rows, test rows, fitted estimator)`` of every outer fold (noise-free)."""
+    cv = cross_validate(
+        build,
+        X,
+        data.labels,
+        folds=len(data.splits),
+        gap=gap,
+        inner_folds=inner_folds,
+        keep_estimators=True,
+        executor=executor,
+    )
+    return [(tr, te, est) for (tr, te), est in zip(data.splits, cv.estimators, strict=True)]
+
+
+def _target_inputs(
+    features: Mapping[str, ArrayLike], targets: Sequence[SweepTarget], n_labels: int
+) -> dict[str, NDArray[Any]]:
+    """The arrays the targets read (by input name), each checked to have one row per label."""
     inputs = {}
     for t in targets:
         if t.inputs not in features:
             raise ParameterError("features", sorted(features), f"inputs '{t.inputs}' for {t.label}")
         inputs[t.inputs] = np.asarray(features[t.inputs])
     for key, X in inputs.items():
-        if X.ndim < 2 or X.shape[0] != labels.size:
+        if not has_shape(X, f"{n_labels},F,*"):
             raise InputError(
-                f"features[{key}]", f"shape {X.shape} does not match {labels.size} labels"
+                f"features[{key}]", f"shape {X.shape} does not match {n_labels} labels"
             )
-    splits = list(ContiguousKFold(folds, gap).split(labels))
-    truth = np.concatenate([labels[test] for _, test in splits])
-    majority = majority_baseline(labels, splits)
-    rows: list[SweepRow] = []
-    grid_points = [(channel, float(p)) for channel in channels for p in strengths]
-    with single_thread():
-        for target in targets:
-            X = inputs[target.inputs]
-            estimator, grid = target.method.estimator(replace(cfg, seed=seed), training)
-            _check_noise_aware(target, estimator, train_under_noise)
-            cv = cross_validate(
-                _Fresh(estimator, grid),
-                X,
-                labels,
-                folds=folds,
-                gap=gap,
-                inner_folds=inner_folds,
-                keep_estimators=True,
-                executor=executor,
-            )
-            fitted = [(tr, te, est) for (tr, te), est in zip(splits, cv.estimators, strict=True)]
-            point = _SweepPoint(
-                target, X, labels, truth, majority, readout, shots, seed, train_under_noise
-            )
-            results: dict[tuple[str, float], SweepRow] = {}
-            if executor is None:
-                for task in grid_points:
-                    results[task] = point(task, fitted)
-                    if on_step:
-                        on_step()
+    return inputs
+
+
+def _run_points(
+    point: _SweepPoint,
+    grid_points: list[tuple[str, float]],
+    fitted: Sequence[tuple[NDArray[np.intp], NDArray[np.intp], Any]],
+    executor: Any,
+    on_step: Callable[[], None] | None,
+) -> list[SweepRow]:
+    """``point`` at every (channel, p) of the grid, here or on ``executor``, in grid order."""
+    results: dict[tuple[str, float], SweepRow] = {}
+    if executor is None:
+        for task in grid_points:
+            results[task] = point(task, fitted)
+            if on_step:
+                on_step()
+    else:
+        for task, row in executor.map_unordered(point, grid_points, fitted):
+            if isinstance(row, SweepRow):
+                results[task] = row
             else:
-                for task, row in executor.map_unordered(point, grid_points, fitted):
-                    if isinstance(row, SweepRow):
-                        results[task] = row
-                    else:
-                        raise ParameterError("noise point", task, f"one that runs ({row})")
-                    if on_step:
-                        on_step()
-            rows += [results[task] for task in grid_points]
-    return rows
+                raise ParameterError("noise point", task, f"one that runs ({row})")
+            if on_step:
+                on_step()
+    return [results[task] for task in grid_points]
 
 
 @dataclass(frozen=True)

@@ -151,8 +151,9 @@ def phase_damping_form(channels: Sequence[str]) -> str | None:
     return "+".join(forms) or None
 
 
-def check_grid(channels: Sequence[str], strengths: Sequence[float]) -> None:
-    """Refuse an empty grid, an unknown channel or a strength outside [0, 1]."""
+def check_grid(channels: Sequence[str], strengths: Sequence[float], readout: float = 0.0) -> None:
+    """Refuse an empty grid, an unknown channel, or a strength or ``readout`` (the readout
+    error added at every point) outside [0, 1]."""
     if not channels:
         raise ParameterError("channels", list(channels), "at least one channel")
     if not strengths:
@@ -163,6 +164,7 @@ def check_grid(channels: Sequence[str], strengths: Sequence[float]) -> None:
         check_channel(ch)
     for p in strengths:
         check_probability("p", p)
+    check_probability("readout", readout)
 
 
 def _quantum_method_names() -> list[str]:

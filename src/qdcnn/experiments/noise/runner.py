@@ -14,7 +14,7 @@ the result carries everything a front end prints (:meth:`NoiseSweepResult.tables
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -30,7 +30,7 @@ from qdcnn._validation import (
     check_seed,
 )
 from qdcnn.batch import Failure
-from qdcnn.config import PipelineConfig
+from qdcnn.config import SHADOW_THRESHOLD_GRID, PipelineConfig
 from qdcnn.data.frames import FrameSet
 from qdcnn.direction.methods import TrainingOptions, get_method, method_names
 from qdcnn.direction.protocol import ContiguousKFold
@@ -38,14 +38,14 @@ from qdcnn.errors import ParameterError
 from qdcnn.experiments.evaluate import executor_for
 from qdcnn.experiments.noise.direction import FRAMES, SweepTarget, direction_sweep, sweep_targets
 from qdcnn.experiments.noise.options import (
+    DIRECTION_METHODS,
+    PAPER_STRENGTHS,
     SHADOW_METHOD,
-    check_phase_damping_form,
+    check_grid,
     direction_methods,
-    parse_channels,
     parse_groupings,
     parse_methods,
     parse_shadow_thresholds,
-    parse_strengths,
 )
 from qdcnn.experiments.noise.results import NoiseSweepResult, SweepRow
 from qdcnn.experiments.noise.shadow import (
@@ -54,6 +54,7 @@ from qdcnn.experiments.noise.shadow import (
     split_train_test,
     synthetic_shadow_set,
 )
+from qdcnn.quantum.noise import PAPER_CHANNELS
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["NoiseSweepRun", "NoiseSweepSpec", "run_noise_sweep"]
@@ -67,20 +68,22 @@ class NoiseSweepSpec:
 
     Attributes
     ----------
+    The sequences hold checked names and numbers (kept as tuples, duplicates dropped); the
+    command line's text forms (``"uu,vqc"``, ``"0:0.99:0.11"``) are parsed by the ``parse_*``
+    functions of :mod:`qdcnn.experiments.noise.options` first.
+
     data : str or None
         Direction data (``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``); needed
         when a direction method is swept.
-    methods : str
-        Comma list of ``uu``, ``vqc``, ``uu-shadow``, ``all`` or registered quantum methods
+    methods : tuple of str
+        ``uu``, ``vqc``, ``uu-shadow`` or registered quantum methods
         (:func:`~.options.parse_methods`).
-    channels : str
-        ``all`` (the six of Fig. 7) or a comma list of channel names.
-    p : str
-        Strengths: ``START:STOP:STEP`` (STOP included) or a comma list, at most 1000.
-    phase_damping : {"textbook", "paper"}
-        What ``phase-damping`` means.
-    grouping : str
-        Lane grouping(s) the shorthands ``uu`` and ``vqc`` run on (comma list).
+    channels : tuple of str
+        Channel names (:data:`~qdcnn.quantum.noise.CHANNELS`; default: the six of Fig. 7).
+    strengths : tuple of float
+        Noise strengths in [0, 1], at most 1000 (default: 0, 0.11, ..., 0.99).
+    groupings : tuple of str
+        Lane groupings the shorthands ``uu`` and ``vqc`` run on.
     train_under_noise : bool
         Retrain under each noise setting (default: train once without noise).
     shots : int or None
@@ -103,9 +106,9 @@ class NoiseSweepSpec:
         Seed of every random choice.
     use_cache : bool
         Reuse cached lane features.
-    shadow_thresholds : {"grid", "paper"}
-        Candidates of the shadow threshold: the fine grid ``train-shadows`` uses, or the
-        paper's 0.75 and 0.97.
+    shadow_thresholds : tuple of float
+        Candidates of the shadow threshold (default: the fine grid ``train-shadows`` uses;
+        ``parse_shadow_thresholds("paper")`` gives the paper's 0.75 and 0.97).
     training : TrainingOptions
         Settings of frame methods (the hybrids): epochs, threads, context.
     scheduler : str or None
@@ -114,11 +117,10 @@ class NoiseSweepSpec:
     """
 
     data: str | None = None
-    methods: str = "uu,vqc"
-    channels: str = "all"
-    p: str = "0:0.99:0.11"
-    phase_damping: str = "textbook"
-    grouping: str = "image-split"
+    methods: tuple[str, ...] = DIRECTION_METHODS
+    channels: tuple[str, ...] = PAPER_CHANNELS
+    strengths: tuple[float, ...] = PAPER_STRENGTHS
+    groupings: tuple[str, ...] = ("image-split",)
     train_under_noise: bool = False
     shots: int | None = None
     readout: float = 0.0
@@ -131,18 +133,20 @@ class NoiseSweepSpec:
     plot: Path | None = None
     seed: int = 0
     use_cache: bool = True
-    shadow_thresholds: str = "grid"
+    shadow_thresholds: tuple[float, ...] = SHADOW_THRESHOLD_GRID
     training: TrainingOptions = field(default_factory=TrainingOptions)
     scheduler: str | None = None
 
     def __post_init__(self) -> None:
         if self.data is not None and not isinstance(self.data, str):
             raise ParameterError("data", self.data, "a dataset spec such as synthetic:track1:60")
+        self._normalise("methods", parse_methods)
+        self._normalise("channels", lambda names: tuple(dict.fromkeys(names)))
+        self._normalise("strengths", lambda ps: tuple(dict.fromkeys(_probabilities(ps))))
+        check_grid(self.channels, self.strengths)
+        self._normalise("groupings", parse_groupings)
+        self._normalise("shadow_thresholds", parse_shadow_thresholds)
         methods = self.method_list
-        check_phase_damping_form(self.phase_damping)
-        parse_channels(self.channels, self.phase_damping)
-        parse_strengths(self.p)
-        parse_groupings(self.grouping)
         check_bool("train_under_noise", self.train_under_noise)
         check_optional_shots(self.shots)
         _check_shots_apply(self.shots, methods)
@@ -160,29 +164,24 @@ class NoiseSweepSpec:
         check_int("shadow_frames", self.shadow_frames, 2, MAX_SHADOW_FRAMES)
         check_seed("seed", self.seed)
         check_bool("use_cache", self.use_cache)
-        parse_shadow_thresholds(self.shadow_thresholds)
         if direction_methods(methods) and self.data is None:
             raise ParameterError("data", None, "a dataset (--data) for the uu and vqc methods")
+
+    def _normalise(self, name: str, checked: Callable[[Sequence[Any]], tuple[Any, ...]]) -> None:
+        """Store field ``name`` as ``checked`` returns it; text is refused (parse it first)."""
+        value = getattr(self, name)
+        if isinstance(value, str) or not isinstance(value, Sequence):
+            raise ParameterError(
+                name, value, "a tuple (parse text with qdcnn.experiments.noise.options)"
+            )
+        object.__setattr__(self, name, checked(value))
 
     @property
     def method_list(self) -> tuple[str, ...]:
         """The methods, with ``uu-shadow`` added when a shadow set is given."""
-        methods = parse_methods(self.methods)
-        if self.shadow_set is not None and SHADOW_METHOD not in methods:
-            methods = (*methods, SHADOW_METHOD)
-        return methods
-
-    @property
-    def channel_list(self) -> tuple[str, ...]:
-        return parse_channels(self.channels, self.phase_damping)
-
-    @property
-    def strengths(self) -> tuple[float, ...]:
-        return parse_strengths(self.p)
-
-    @property
-    def groupings(self) -> tuple[str, ...]:
-        return parse_groupings(self.grouping)
+        if self.shadow_set is not None and SHADOW_METHOD not in self.methods:
+            return (*self.methods, SHADOW_METHOD)
+        return self.methods
 
 
 @dataclass
@@ -210,7 +209,6 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
     """Sweep every method of ``spec`` over its noise grid (module docstring)."""
     report = reporter or Reporter()
     methods = spec.method_list
-    channels, strengths = spec.channel_list, spec.strengths
     cfg = replace(spec.config, seed=spec.seed)
     failures: list[Failure] = []
 
@@ -219,85 +217,22 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
             failures.append(f)
             report.failure(f)
 
-    n_points = len(channels) * len(strengths)
     rows: list[SweepRow] = []
     dataset = shadow_name = None
     protocol: dict[str, Any] = {}
-    direction = direction_methods(methods)
-    if direction:
-        assert spec.data is not None
-        from qdcnn.data.frames import load_frameset
-
-        frames = load_frameset(
-            spec.data, seed=spec.seed, steering_unit=spec.config.labels.steering_unit
-        )
-        ContiguousKFold(spec.folds, spec.gap).check(len(frames))  # before any work
-        targets = sweep_targets(direction, spec.groupings)
-        inputs, y, bad = _direction_inputs(spec, cfg, frames, targets, report)
-        fail(bad)
-        dataset = frames.name
+    if direction_methods(methods):
+        dataset, direction_rows = _sweep_direction(spec, cfg, report, fail)
+        rows += direction_rows
         protocol.update(folds=spec.folds, gap=spec.gap, inner_folds=spec.inner_folds)
-        with (
-            report.progress(len(targets) * n_points, "noise sweep") as advance,
-            executor_for(spec.scheduler) as executor,
-        ):
-            rows += direction_sweep(
-                inputs,
-                y,
-                methods=direction,
-                groupings=spec.groupings,
-                channels=channels,
-                strengths=strengths,
-                config=cfg,
-                folds=spec.folds,
-                gap=spec.gap,
-                inner_folds=spec.inner_folds,
-                train_under_noise=spec.train_under_noise,
-                shots=spec.shots,
-                readout=spec.readout,
-                seed=spec.seed,
-                on_step=advance,
-                training=spec.training,
-                executor=executor,
-            )
     if SHADOW_METHOD in methods:
-        if spec.shadow_set is not None:
-            from qdcnn.data.shadow_set import load_shadow_set
-
-            images, masks, bad = load_shadow_set(Path(spec.shadow_set))
-            fail(bad)
-            shadow_name = Path(spec.shadow_set).resolve().name
-        else:
-            images, masks = synthetic_shadow_set(spec.shadow_frames, seed=spec.seed)
-            shadow_name = SYNTHETIC_SHADOW_SET
-        tr, te = split_train_test(len(images))
-        protocol.update(
-            shadow_train=tr.stop - tr.start,
-            shadow_test=te.stop - te.start,
-            shadow_thresholds=list(parse_shadow_thresholds(spec.shadow_thresholds)),
-        )
-        with report.progress(n_points, "shadow noise sweep") as advance:
-            shadow_rows, _ = shadow_sweep(
-                images[tr],
-                masks[tr],
-                images[te],
-                masks[te],
-                channels=channels,
-                strengths=strengths,
-                config=cfg.shadow,
-                thresholds=spec.shadow_thresholds,
-                train_under_noise=spec.train_under_noise,
-                shots=spec.shots,
-                readout=spec.readout,
-                seed=spec.seed,
-                on_step=advance,
-            )
+        shadow_name, shadow_rows, shadow_protocol = _sweep_shadows(spec, cfg, report, fail)
         rows += shadow_rows
+        protocol.update(shadow_protocol)
     result = NoiseSweepResult(
         dataset,
         rows,
-        channels,
-        strengths,
+        spec.channels,
+        spec.strengths,
         trained_under_noise=spec.train_under_noise,
         shots=spec.shots,
         readout=spec.readout,
@@ -311,6 +246,92 @@ def run_noise_sweep(spec: NoiseSweepSpec, reporter: Reporter | None = None) -> N
 
         figures = write_figures(result, spec.plot)
     return NoiseSweepRun(result, figures, failures)
+
+
+def _sweep_direction(
+    spec: NoiseSweepSpec,
+    cfg: PipelineConfig,
+    report: Reporter,
+    fail: Callable[[list[Failure]], None],
+) -> tuple[str, list[SweepRow]]:
+    """The direction methods' rows, on the spec's data (named by the returned dataset name)."""
+    assert spec.data is not None
+    from qdcnn.data.frames import load_frameset
+
+    unit = spec.config.labels.steering_unit
+    frames = load_frameset(spec.data, seed=spec.seed, steering_unit=unit)
+    ContiguousKFold(spec.folds, spec.gap).check(len(frames))  # before any work
+    direction = direction_methods(spec.method_list)
+    targets = sweep_targets(direction, spec.groupings)
+    inputs, y, bad = _direction_inputs(spec, cfg, frames, targets, report)
+    fail(bad)
+    n_points = len(spec.channels) * len(spec.strengths)
+    with (
+        report.progress(len(targets) * n_points, "noise sweep") as advance,
+        executor_for(spec.scheduler) as executor,
+    ):
+        rows = direction_sweep(
+            inputs,
+            y,
+            methods=direction,
+            groupings=spec.groupings,
+            channels=spec.channels,
+            strengths=spec.strengths,
+            config=cfg,
+            folds=spec.folds,
+            gap=spec.gap,
+            inner_folds=spec.inner_folds,
+            train_under_noise=spec.train_under_noise,
+            shots=spec.shots,
+            readout=spec.readout,
+            seed=spec.seed,
+            on_step=advance,
+            training=spec.training,
+            executor=executor,
+        )
+    return frames.name, rows
+
+
+def _sweep_shadows(
+    spec: NoiseSweepSpec,
+    cfg: PipelineConfig,
+    report: Reporter,
+    fail: Callable[[list[Failure]], None],
+) -> tuple[str, list[SweepRow], dict[str, Any]]:
+    """The shadow detector's rows on the spec's shadow set (or synthetic scenes): the set's
+    name, the rows, and the train/test split and thresholds for the protocol."""
+    if spec.shadow_set is not None:
+        from qdcnn.data.shadow_set import load_shadow_set
+
+        images, masks, bad = load_shadow_set(Path(spec.shadow_set))
+        fail(bad)
+        shadow_name = Path(spec.shadow_set).resolve().name
+    else:
+        images, masks = synthetic_shadow_set(spec.shadow_frames, seed=spec.seed)
+        shadow_name = SYNTHETIC_SHADOW_SET
+    tr, te = split_train_test(len(images))
+    protocol = {
+        "shadow_train": tr.stop - tr.start,
+        "shadow_test": te.stop - te.start,
+        "shadow_thresholds": list(spec.shadow_thresholds),
+    }
+    with report.progress(len(spec.channels) * len(spec.strengths), "shadow noise sweep") as step:
+        rows, _ = shadow_sweep(
+            images[tr],
+            masks[tr],
+            images[te],
+            masks[te],
+            channels=spec.channels,
+            strengths=spec.strengths,
+            config=cfg.shadow,
+            thresholds=spec.shadow_thresholds,
+            train_under_noise=spec.train_under_noise,
+            shots=spec.shots,
+            readout=spec.readout,
+            seed=spec.seed,
+            on_step=step,
+        )
+    return shadow_name, rows, protocol
 
 
 def _direction_inputs(
@@ -357,6 +378,10 @@ def _direction_inputs(
     if images is not None:
         inputs[FRAMES] = images[keep]
     return inputs, labels, failures
+
+
+def _probabilities(values: Sequence[Any]) -> list[float]:
+    return [check_probability("p", v) for v in values]
 
 
 def _check_shots_apply(shots: int | None, methods: Sequence[str]) -> None:

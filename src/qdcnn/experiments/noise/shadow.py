@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._threads import single_thread
-from qdcnn._validation import check_int, check_probability
+from qdcnn._validation import check_int
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise._rng import point_rng
@@ -34,7 +34,7 @@ from qdcnn.experiments.noise.options import (
 from qdcnn.experiments.noise.results import SweepRow
 from qdcnn.quantum.noise import PAPER_CHANNELS, NoiseSpec
 from qdcnn.quantum.uu_dagger import fidelity, value_to_angle
-from qdcnn.vision.metrics import ConfusionCounts, ShadowScores, confusion_counts, shadow_scores
+from qdcnn.vision.metrics import ConfusionCounts, confusion_counts, shadow_scores
 from qdcnn.vision.shadow_training import block_shadow_fraction, train_shadow_model
 from qdcnn.vision.shadows import (
     ShadowModel,
@@ -92,22 +92,6 @@ def _noisy_threshold(
     return float(thresholds[int(np.argmin(bers))])
 
 
-def _score_detections(
-    model: ShadowModel,
-    images: Sequence[NDArray[np.uint8]],
-    masks: Sequence[NDArray[np.bool_]],
-    cfg: ShadowConfig,
-    noise: NoiseSpec,
-    rng: np.random.Generator,
-) -> tuple[ShadowScores, ConfusionCounts]:
-    """Detect shadows in every image under ``noise``; scores of the pixel counts summed."""
-    counts = ConfusionCounts(0, 0, 0, 0)
-    for i, (image, mask) in enumerate(zip(images, masks, strict=True)):
-        det = detect_shadows_uu(image, cfg, model=model, noise=noise, rng=rng)
-        counts = counts + confusion_counts(det.mask, mask, source=f"test image {i}")
-    return shadow_scores(counts), counts
-
-
 def shadow_sweep(
     train_images: Sequence[NDArray[np.uint8]],
     train_masks: Sequence[NDArray[np.bool_]],
@@ -158,8 +142,7 @@ def shadow_sweep(
         The noiseless model.
     """
     cfg = replace(config or ShadowConfig(), shots=shots)
-    check_grid(channels, strengths)
-    check_probability("readout", readout)
+    check_grid(channels, strengths, readout)
     candidates = parse_shadow_thresholds(thresholds)
     if not test_images or len(test_images) != len(test_masks):
         raise ParameterError(
@@ -176,21 +159,37 @@ def shadow_sweep(
                     t = _noisy_threshold(model, train_images, train_masks, cfg, noise, candidates)
                     used = replace(model, threshold=t)
                 gen = point_rng(seed, SHADOW_METHOD, channel, p)
-                scores, counts = _score_detections(used, test_images, test_masks, cfg, noise, gen)
-                rows.append(
-                    SweepRow(
-                        SHADOW_METHOD,
-                        None,
-                        channel,
-                        float(p),
-                        (counts.tp + counts.tn) / counts.total,
-                        len(test_images),
-                        ber=scores.ber,
-                        shadow_error=scores.shadow_error,
-                        nonshadow_error=scores.nonshadow_error,
-                        threshold=used.threshold,
-                    )
-                )
+                rows.append(_shadow_row(used, test_images, test_masks, cfg, noise, gen))
                 if on_step:
                     on_step()
     return rows, model
+
+
+def _shadow_row(
+    model: ShadowModel,
+    images: Sequence[NDArray[np.uint8]],
+    masks: Sequence[NDArray[np.bool_]],
+    cfg: ShadowConfig,
+    noise: NoiseSpec,
+    rng: np.random.Generator,
+) -> SweepRow:
+    """Detect shadows in every test image under ``noise`` (one (channel, p)); the sweep row
+    of the pixel counts summed."""
+    assert noise.channel is not None
+    counts = ConfusionCounts(0, 0, 0, 0)
+    for i, (image, mask) in enumerate(zip(images, masks, strict=True)):
+        det = detect_shadows_uu(image, cfg, model=model, noise=noise, rng=rng)
+        counts = counts + confusion_counts(det.mask, mask, source=f"test image {i}")
+    scores = shadow_scores(counts)
+    return SweepRow(
+        SHADOW_METHOD,
+        None,
+        noise.channel,
+        noise.p,
+        (counts.tp + counts.tn) / counts.total,
+        len(images),
+        ber=scores.ber,
+        shadow_error=scores.shadow_error,
+        nonshadow_error=scores.nonshadow_error,
+        threshold=model.threshold,
+    )

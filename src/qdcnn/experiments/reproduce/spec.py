@@ -21,6 +21,7 @@ from qdcnn.data.frames import parse_spec
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise import PAPER_STRENGTHS
 from qdcnn.experiments.reproduce.paper_values import DATASET_LABELS, DATASET_TITLES
+from qdcnn.vision.grouping import GROUPINGS
 
 __all__ = [
     "FULL",
@@ -151,7 +152,7 @@ FULL = Profile(
     synthetic_frames=600,
     max_frames=None,
     named_kinds=None,
-    noise_groupings=("image-split", "kmeans", "spectral"),
+    noise_groupings=GROUPINGS,
     noise_strengths=PAPER_STRENGTHS,
     shadow_scenes=48,
     bench_sizes=((320, 160), (1280, 720)),

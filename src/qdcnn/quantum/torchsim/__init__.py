@@ -16,9 +16,9 @@ torch is the optional ``dnn`` extra; importing this package without it raises
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any
 
 from qdcnn.quantum.circuits import CircuitTemplate
+from qdcnn.quantum.noise import GateNoise
 from qdcnn.quantum.torchsim.program import MAX_QUBITS, gate_channels
 from qdcnn.quantum.torchsim.simulate import TorchCircuit
 
@@ -26,13 +26,13 @@ __all__ = ["MAX_QUBITS", "TorchCircuit", "compiled", "gate_channels"]
 
 
 @lru_cache(maxsize=64)
-def _cached(template: CircuitTemplate, noise: Any) -> TorchCircuit:
+def _cached(template: CircuitTemplate, noise: GateNoise | None) -> TorchCircuit:
     return TorchCircuit(template, noise)
 
 
-def compiled(template: CircuitTemplate, noise: Any = None) -> TorchCircuit:
+def compiled(template: CircuitTemplate, noise: GateNoise | None = None) -> TorchCircuit:
     """A :class:`TorchCircuit` for ``template`` and ``noise``, cached when both are hashable."""
     try:
-        return _cached(template, noise)
+        return _cached(template, noise)  # type: ignore[arg-type]  # unhashable: below
     except TypeError:  # an unhashable noise object
         return TorchCircuit(template, noise)

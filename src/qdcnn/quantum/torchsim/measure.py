@@ -6,7 +6,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._optional import require
-from qdcnn.quantum.sampling import check_shots, sample_probabilities
+from qdcnn._validation import check_shots
+from qdcnn.quantum.sampling import sample_probabilities
 
 require("torch", "the PyTorch quantum simulator")
 import torch  # noqa: E402

@@ -20,13 +20,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import TWO_QUBIT, CircuitTemplate, Gate
+from qdcnn.quantum.noise import GateNoise
 
 #: Largest register the PyTorch simulator accepts (a 256 x 256 density matrix per sample).
 MAX_QUBITS = 8
@@ -35,40 +35,38 @@ Kraus = NDArray[np.complex128]
 Channel = tuple[tuple[int, ...], Kraus]
 
 
-def gate_channels(noise: Any, gate: Gate) -> list[Channel]:
+def gate_channels(noise: GateNoise, gate: Gate) -> list[Channel]:
     """The noise channels acting after ``gate``: a list of ``(qubits, kraus)``.
 
     ``kraus`` has shape ``(k, 2**m, 2**m)`` for ``m = len(qubits)``, with ``qubits[0]``
     the least significant bit of its index (Qiskit's order). A :class:`NoiseSpec` puts
     its channel after every gate on every qubit the gate touches, exactly as
-    :func:`qdcnn.quantum.simulator.density_matrix` applies it. A noise object that
-    defines ``channels_after(gate)`` (per-qubit device noise) answers for itself.
+    :func:`qdcnn.quantum.simulator.density_matrix` applies it; per-qubit device noise
+    answers per gate (``channels_after`` of the noise protocol, :class:`GateNoise`).
     """
-    hook = getattr(noise, "channels_after", None)
-    if hook is not None:
-        return [(tuple(q), np.asarray(k, dtype=np.complex128)) for q, k in hook(gate)]
-    kraus = noise.kraus()
-    return [] if kraus is None else [((q,), kraus) for q in gate.qubits]
+    return [(tuple(q), np.asarray(k, dtype=np.complex128)) for q, k in noise.channels_after(gate)]
 
 
-def readout_confusions(noise: Any, num_qubits: int) -> list[NDArray[np.float64]] | None:
+def readout_confusions(
+    noise: GateNoise | None, num_qubits: int
+) -> list[NDArray[np.float64]] | None:
     """Per-qubit readout matrices ``A[measured, prepared]``, or ``None`` without readout error.
 
     Read through the noise protocol (:class:`qdcnn.quantum.noise.GateNoise`).
     """
-    hook = getattr(noise, "readout_matrices", None)
+    hook = getattr(noise, "readout_matrices", None)  # a noise without readout may leave it out
     matrices = None if hook is None else hook(num_qubits)
     return None if matrices is None else [np.asarray(m, dtype=np.float64) for m in matrices]
 
 
-def check_template_noise(noise: Any) -> None:
+def check_template_noise(noise: GateNoise | None) -> None:
     """Refuse noise that rewrites circuits into a device's native gates.
 
     Device noise (:class:`qdcnn.quantum.device.DeviceNoise`) prepares each bound circuit
     in native gates on a layout; the PyTorch simulator runs symbolic templates, so such
     noise is simulated by the NumPy density-matrix simulator instead.
     """
-    if getattr(noise, "device", None) is not None:
+    if noise is not None and getattr(noise, "device", None) is not None:
         raise ParameterError(
             "noise",
             noise.label(),
@@ -177,7 +175,7 @@ def _block(gates: Sequence[int], qubit_of: Sequence[int]) -> Block:
     return Block(qubits, tuple(rounds))
 
 
-def compile_template(template: CircuitTemplate, noise: Any = None) -> Program:
+def compile_template(template: CircuitTemplate, noise: GateNoise | None = None) -> Program:
     """Group ``template``'s gates into steps for ``noise`` (``None``: noise-free)."""
     check_template_noise(noise)
     n = template.num_qubits

@@ -21,9 +21,11 @@ from typing import Any
 import numpy as np
 
 from qdcnn._optional import require
+from qdcnn._validation import check_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates as np_gates
 from qdcnn.quantum.circuits import CircuitTemplate
+from qdcnn.quantum.noise import GateNoise
 from qdcnn.quantum.torchsim import pauli
 from qdcnn.quantum.torchsim.gates import complex_dtype, gate_matrices
 from qdcnn.quantum.torchsim.measure import (
@@ -87,8 +89,7 @@ def _check_params(
             continue
         if not isinstance(t, torch.Tensor) or t.dtype not in (torch.float32, torch.float64):
             raise ParameterError(label, type(t).__name__, "a float32 or float64 torch tensor")
-        if t.ndim not in (1, 2) or t.shape[-1] != size:
-            raise ParameterError(label, f"shape {tuple(t.shape)}", f"({size},) or (B, {size})")
+        check_shape(label, t, f"{size}|B,{size}", f"({size},) or (B, {size})")
     if not given:
         raise ParameterError("inputs/weights", None, "at least one tensor (for dtype and device)")
     ref = given[0]
@@ -123,7 +124,7 @@ class TorchCircuit:
     Everything is differentiable with autograd, noise channels included.
     """
 
-    def __init__(self, template: CircuitTemplate, noise: Any = None) -> None:
+    def __init__(self, template: CircuitTemplate, noise: GateNoise | None = None) -> None:
         self.template = template
         self.noise = noise
         self.program: Program = compile_template(template, noise)
