@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,7 @@ from qdcnn.direction.builtin import (
 )
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
+from qdcnn.runtime.reporting import Reporter
 
 SMALL = ("synthetic:track1:100", "synthetic:rain:100")
 
@@ -93,9 +96,23 @@ def test_a_model_file_refuses_other_lane_settings(tmp_path: Path) -> None:
     assert notes == []
 
 
+class _StepCounter(Reporter):
+    def __init__(self) -> None:
+        self.steps: list[tuple[str, int, int]] = []
+
+    @contextmanager
+    def progress(self, total: int, description: str) -> Iterator[Callable[..., None]]:
+        done = [0]
+        yield lambda *_: done.__setitem__(0, done[0] + 1)
+        self.steps.append((description, total, done[0]))
+
+
 def test_no_cache_writes_nothing_and_image_methods_need_a_file(cache: Path) -> None:
-    default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1], use_cache=False)
+    counter = _StepCounter()
+    default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1], use_cache=False, reporter=counter)
     assert not (cache / "models").exists()
+    # the training reports its progress: the preset's features, the fit, the score
+    assert counter.steps == [(f"built-in model {DEFAULT_METHOD}: train, score", 3, 3)]
     with pytest.raises(InputError, match="needs a trained model file"):
         default_direction_model("dnn-pilotnet")
 

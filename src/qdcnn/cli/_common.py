@@ -1,9 +1,10 @@
 """Shared pieces of the command line: consoles, JSON output, error lines, progress bars.
 
-stdout carries results (only JSON with ``--json``); stderr carries progress bars,
-notes and one-line errors. Every printed message is escaped, so text in square
-brackets (``pip install 'qdcnn[quantum]'``, a file named ``frame[left].png``) is shown
-as written instead of being read as Rich markup.
+stdout carries results (only JSON with ``--json``); stderr carries progress bars (plain
+``progress:`` lines at least every 10 seconds when stderr is not a terminal), notes and
+one-line errors; ``--quiet`` leaves out the progress and the notes. Every printed
+message is escaped, so text in square brackets (``pip install 'qdcnn[quantum]'``, a file
+named ``frame[left].png``) is shown as written instead of being read as Rich markup.
 """
 
 from __future__ import annotations
@@ -51,6 +52,12 @@ JsonOpt = Annotated[
 SeedOpt = Annotated[int, typer.Option(help="Seed of every random choice.")]
 CacheOpt = Annotated[bool, typer.Option(help="Reuse cached lane features.")]
 FoldsOpt = Annotated[int, typer.Option(help="Contiguous cross-validation folds.")]
+QuietOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quiet", "-q", help="No progress or notes on stderr (errors and results still print)."
+    ),
+]
 GapOpt = Annotated[
     int, typer.Option(help="Frames left out of training on each side of a test block.")
 ]
@@ -197,17 +204,27 @@ def fail(exc: QdcnnError) -> typer.Exit:
 class CliReporter(Reporter):
     """Renders a runner's events: JSON lines with ``--json``, stderr lines and bars otherwise.
 
+    Progress is a bar on a terminal; otherwise (a log, a pipe) plain ``progress:`` lines,
+    at least one every ``$QDCNN_PROGRESS_INTERVAL`` seconds (10), so long work is never
+    silent. A piece of work inside another gets its own bar or lines; the outer one's
+    heartbeat waits meanwhile.
+
     Parameters
     ----------
     as_json : bool
         Print each finished item and failure as a JSON line on stdout.
     on_result : callable, optional
         Without ``--json``, called with each finished item (to fill a table).
+    quiet : bool
+        No progress and no notes (``--quiet``); errors and results still print.
     """
 
-    def __init__(self, as_json: bool, on_result: Any = None) -> None:
+    def __init__(self, as_json: bool, on_result: Any = None, *, quiet: bool = False) -> None:
         self.as_json = as_json
         self.on_result = on_result
+        self.quiet = quiet
+        self._open_lines: list[Any] = []  # the ProgressLines open, innermost last
+        self._bar: Any = None
 
     def result(self, item: Mapping[str, Any]) -> None:
         if self.as_json:
@@ -221,29 +238,74 @@ class CliReporter(Reporter):
             emit(failure.to_dict())
 
     def note(self, message: str) -> None:
-        report_note(message)
+        if not self.quiet:
+            report_note(message)
 
     @contextmanager
     def progress(self, total: int, description: str) -> Iterator[Advance]:
-        from rich.progress import (  # only commands that run load the progress bar
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TaskProgressColumn,
-            TextColumn,
-            TimeRemainingColumn,
-        )
+        if self.quiet:
+            yield lambda *_: None
+        elif err.is_terminal:
+            with self._bar_task(total, description) as advance:
+                yield advance
+        else:
+            with self._plain_lines(total, description) as lines:
+                yield lines.advance
 
-        bar = Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TaskProgressColumn(),
-            TimeRemainingColumn(),
-            console=err,
-            transient=True,
-            disable=not err.is_terminal,
-        )
+    @contextmanager
+    def _plain_lines(self, total: int, description: str) -> Iterator[Any]:
+        from qdcnn.runtime.reporting import ProgressLines, progress_interval
+
+        outer = self._open_lines[-1] if self._open_lines else None
+        if outer is not None:
+            outer.pause()
+        lines = ProgressLines(total, description, _plain_line, interval=progress_interval())
+        self._open_lines.append(lines)
+        try:
+            with lines:
+                yield lines
+        finally:
+            self._open_lines.pop()
+            if outer is not None:
+                outer.resume()
+
+    @contextmanager
+    def _bar_task(self, total: int, description: str) -> Iterator[Advance]:
+        """A task on the open bar (Rich before 14 allows one live display), or on a new one."""
+        if self._bar is None:
+            from rich.progress import (  # only commands that run load the progress bar
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TaskProgressColumn,
+                TextColumn,
+                TimeRemainingColumn,
+            )
+
+            bar = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TaskProgressColumn(),
+                TimeRemainingColumn(),
+                console=err,
+                transient=True,
+            )
+            with bar:
+                self._bar = bar
+                try:
+                    with self._bar_task(total, description) as advance:
+                        yield advance
+                finally:
+                    self._bar = None
+            return
+        bar = self._bar
         task = bar.add_task(escape(description), total=total)
-        with bar:
+        try:
             yield lambda *_: bar.advance(task)
+        finally:
+            bar.remove_task(task)
+
+
+def _plain_line(line: str) -> None:
+    err.print(line, markup=False, highlight=False, soft_wrap=True)

@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import JsonOpt, emit, err, fail, out
+from qdcnn.cli._common import JsonOpt, QuietOpt, emit, err, fail, out
 from qdcnn.errors import QdcnnError
 
 bench_app = typer.Typer(
@@ -19,8 +19,8 @@ bench_app = typer.Typer(
 )
 
 
-def _say(as_json: bool, prefix: str = "") -> Any:
-    return None if as_json else lambda m: err.print(f"[dim]{prefix}{m}[/dim]", markup=True)
+def _say(silent: bool, prefix: str = "") -> Any:
+    return None if silent else lambda m: err.print(f"[dim]{prefix}{m}[/dim]", markup=True)
 
 
 @bench_app.command("shadows")
@@ -32,6 +32,7 @@ def bench_shadows_cmd(
     ] = 200,
     lbp: Annotated[bool, typer.Option(help="Include the (slow) LBP baseline.")] = True,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Per-frame time of UU-dagger (exact, 1024 shots), per-block Aer, IBT, CBS and LBP."""
     from qdcnn.experiments.shadow_bench import bench_shadows
@@ -42,7 +43,7 @@ def bench_shadows_cmd(
             repeats=repeats,
             aer_blocks=aer_blocks,
             include_lbp=lbp,
-            progress=_say(as_json, "timing "),
+            progress=_say(as_json or quiet, "timing "),
         )
     except QdcnnError as exc:
         raise fail(exc) from None
@@ -95,13 +96,14 @@ def bench_pipeline_cmd(
     one_core: Annotated[bool, typer.Option(help="Pin the process to one CPU core.")] = True,
     cnn: Annotated[bool, typer.Option(help="Also time CNN inference (needs torch).")] = True,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Frames/s of the whole per-frame pipeline (shadow, lanes, decision) per method."""
     from qdcnn.experiments.pipeline_bench import bench_pipeline
 
     try:
         result = bench_pipeline(
-            data=data, frames=frames, one_core=one_core, cnn=cnn, say=_say(as_json)
+            data=data, frames=frames, one_core=one_core, cnn=cnn, say=_say(as_json or quiet)
         )
     except QdcnnError as exc:
         raise fail(exc) from None

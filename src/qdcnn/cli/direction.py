@@ -27,6 +27,7 @@ from qdcnn.cli._common import (
     LaneOptions,
     LanesOpt,
     MarksOpt,
+    QuietOpt,
     SeedOpt,
     SegmentAnglesOpt,
     ShadowRemovalOpt,
@@ -104,6 +105,7 @@ def evaluate_cmd(
     track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Cross-validated direction accuracy with contiguous folds (the paper's accuracy table)."""
     from qdcnn.direction.methods import with_head
@@ -125,7 +127,7 @@ def evaluate_cmd(
             use_cache=cache,
             scheduler=scheduler,
         )
-        result = run_evaluation(spec, CliReporter(as_json))
+        result = run_evaluation(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json and result.failures:
@@ -188,6 +190,7 @@ def train_direction_cmd(
     inner_lines: InnerLinesOpt = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Train a direction classifier on all frames of a dataset and save it.
 
@@ -210,7 +213,7 @@ def train_direction_cmd(
             gap,
             training_options(epochs, weights, threads, not as_json, context),
         )
-        result = train_direction(spec, CliReporter(False))
+        result = train_direction(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -241,6 +244,7 @@ def detect_lanes_cmd(
     inner_lines: InnerLinesOpt = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
@@ -257,7 +261,7 @@ def detect_lanes_cmd(
         spec = DetectLanesSpec(
             tuple(paths), out_dir, model, method, seed, force, wait, lane.config(seed)
         )
-        result = detect_lanes(spec, CliReporter(as_json))
+        result = detect_lanes(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

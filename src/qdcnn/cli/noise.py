@@ -27,6 +27,7 @@ from qdcnn.cli._common import (
     LaneOptions,
     LanesOpt,
     MarksOpt,
+    QuietOpt,
     SeedOpt,
     SegmentAnglesOpt,
     ShadowRemovalOpt,
@@ -138,6 +139,7 @@ def noise_sweep_cmd(
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
     methods: MethodsAlias = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
 
@@ -166,7 +168,7 @@ def noise_sweep_cmd(
             options.parse_shadow_thresholds(shadow_thresholds),
             training_options(epochs, None, threads, False), scheduler,
         )  # fmt: skip
-        run = run_noise_sweep(spec, CliReporter(False))
+        run = run_noise_sweep(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -221,6 +223,7 @@ def circuit_cmd(
         Path | None, typer.Option(help="Write the circuit as OpenQASM 3 (measured) to this file.")
     ] = None,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Print a circuit's diagram and outcome probabilities; optionally export OpenQASM 3.
 
@@ -234,7 +237,7 @@ def circuit_cmd(
             kind, theta_c, theta_x, x, weights, feature_map_reps, noise, shots, backend, seed,
             qasm, qubits, layers, False, model,
         )  # fmt: skip
-        result = inspect_circuit(spec, CliReporter(False))
+        result = inspect_circuit(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

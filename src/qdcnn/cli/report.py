@@ -17,6 +17,7 @@ from qdcnn.cli._common import (
     CliReporter,
     EpochsOpt,
     JsonOpt,
+    QuietOpt,
     SeedOpt,
     ThreadsOpt,
     emit,
@@ -38,10 +39,11 @@ ResumeOpt = Annotated[
 
 
 class _StageLines(CliReporter, StageReporter):
-    """CLI reporter that also prints one line on stderr as each section begins."""
+    """CLI reporter that also prints one line on stderr as each section begins (not quiet)."""
 
     def stage(self, index: int, total: int, title: str) -> None:
-        err.print(f"[{index}/{total}] {title}", style="dim", markup=False, highlight=False)
+        if not self.quiet:
+            err.print(f"[{index}/{total}] {title}", style="dim", markup=False, highlight=False)
 
     def result(self, item: Mapping[str, Any]) -> None:
         super().result(item)
@@ -53,11 +55,11 @@ class _StageLines(CliReporter, StageReporter):
             err.print(line, style="dim", markup=False, highlight=False)
 
 
-def _finish(spec: ReproduceSpec, as_json: bool) -> None:
+def _finish(spec: ReproduceSpec, as_json: bool, quiet: bool) -> None:
     from qdcnn.experiments.reproduce import run_reproduce
 
     try:
-        result = run_reproduce(spec, _StageLines(as_json))
+        result = run_reproduce(spec, _StageLines(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -119,6 +121,7 @@ def reproduce_cmd(
     seed: SeedOpt = 0,
     cache: CacheOpt = True,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Every table and figure of the paper next to the same thing measured on your data."""
     from qdcnn.experiments.reproduce import ReproduceSpec, parse_data_option
@@ -140,9 +143,10 @@ def reproduce_cmd(
             synthetic_frames=synthetic_frames,
             use_cache=cache,
         )
+        spec.check_paths()
     except QdcnnError as exc:
         raise fail(exc) from None
-    _finish(spec, as_json)
+    _finish(spec, as_json, quiet)
 
 
 def demo_cmd(
@@ -154,6 +158,7 @@ def demo_cmd(
     force: ForceOpt = False,
     resume: ResumeOpt = False,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """`reproduce --quick` on the built-in synthetic presets: the whole paper in minutes."""
     from qdcnn.experiments.reproduce import ReproduceSpec
@@ -162,4 +167,4 @@ def demo_cmd(
         spec = ReproduceSpec(out_dir, quick=quick, force=force, resume=resume, seed=seed)
     except QdcnnError as exc:
         raise fail(exc) from None
-    _finish(spec, as_json)
+    _finish(spec, as_json, quiet)

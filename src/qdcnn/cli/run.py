@@ -17,6 +17,7 @@ from qdcnn.cli._common import (
     LaneOptions,
     LanesOpt,
     MarksOpt,
+    QuietOpt,
     SegmentAnglesOpt,
     ShadowRemovalOpt,
     TrackOpt,
@@ -59,6 +60,7 @@ def run_cmd(
     inner_lines: InnerLinesOpt = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Per-frame direction, shadow fraction and lanes of every input; resumable after a crash.
 
@@ -80,7 +82,7 @@ def run_cmd(
         spec = RunSpec(
             tuple(inputs), out_dir, model, method, options, scheduler, seed, lane.config(seed)
         )
-        result = run(spec, CliReporter(as_json))
+        result = run(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

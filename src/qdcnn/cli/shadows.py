@@ -16,6 +16,7 @@ from rich.table import Table
 from qdcnn.cli._common import (
     CliReporter,
     JsonOpt,
+    QuietOpt,
     WaitOpt,
     click,
     deprecated_spelling,
@@ -59,6 +60,7 @@ def detect_shadows_cmd(
     force: Annotated[bool, typer.Option(help="Redo images whose mask is already done.")] = False,
     wait: WaitOpt = 0.0,
     as_json: JsonOpt = False,
+    quiet: QuietOpt = False,
 ) -> None:
     """Detect shadows; write a 0/255 mask per image at input size.
 
@@ -76,7 +78,8 @@ def detect_shadows_cmd(
         spec = ShadowDetectionSpec(
             tuple(paths), out_dir, method, cfg, model, backend, seed, force, wait
         )
-        result = run_shadow_detection(spec, CliReporter(as_json, lambda r: _mask_row(table, r)))
+        reporter = CliReporter(as_json, lambda r: _mask_row(table, r), quiet=quiet)
+        result = run_shadow_detection(spec, reporter)
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
@@ -149,6 +152,7 @@ def train_shadows_cmd(
     seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
     as_json: JsonOpt = False,
     data: Annotated[Path | None, typer.Option("--data", hidden=True)] = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Train a UU-dagger shadow model on images with masks.
 
@@ -165,7 +169,7 @@ def train_shadows_cmd(
     names = tuple(f.strip() for f in features.split(",") if f.strip())
     try:
         spec = ShadowTrainingSpec(shadow_set, out_file, names, centroids, search_threshold, seed)
-        result = train_shadows(spec, CliReporter(False))
+        result = train_shadows(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:

@@ -30,6 +30,7 @@ from qdcnn.direction.methods import DirectionMethod, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.direction.protocol import cross_validate, majority_baseline, pooled_accuracy
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -78,10 +79,12 @@ def default_direction_model(
     data: str | Sequence[str] = DEFAULT_TRAINING_DATA,
     use_cache: bool = True,
     config: PipelineConfig | None = None,
+    reporter: Reporter | None = None,
 ) -> DirectionModel:
     """Lane method ``method`` trained on ``data`` (dataset specs), read from the cache if there.
 
-    ``config`` is the pipeline it is trained with (default ``PipelineConfig(seed=seed)``).
+    ``config`` is the pipeline it is trained with (default ``PipelineConfig(seed=seed)``);
+    ``reporter`` is told the training's progress (a minute when nothing is cached).
 
     Raises
     ------
@@ -99,7 +102,7 @@ def default_direction_model(
             return DirectionModel.load(path)
         except InputError:
             pass  # an unreadable cache entry (an interrupted disk, an older format): retrain
-    model = _train_and_score(info, specs, seed, config)
+    model = _train_and_score(info, specs, seed, config, reporter or Reporter())
     if use_cache:
         model.save(path)
     return model
@@ -111,9 +114,10 @@ def direction_model(
     seed: int,
     config: PipelineConfig,
     note: Callable[[str], None],
+    reporter: Reporter | None = None,
 ) -> DirectionModel:
     """The model file at ``path``, or (``path`` None) the built-in model of ``method``
-    trained with ``config``, named in a ``note``.
+    trained with ``config`` (its progress told to ``reporter``), named in a ``note``.
 
     Raises
     ------
@@ -130,7 +134,7 @@ def direction_model(
                 "--model or lane options other than the defaults, not both",
             )
         return DirectionModel.load(path)
-    model = default_direction_model(method, seed, config=config)
+    model = default_direction_model(method, seed, config=config, reporter=reporter)
     note(f"no --model: the built-in model, {describe_default_model(model)}")
     return model
 
@@ -148,16 +152,26 @@ def describe_default_model(model: DirectionModel) -> str:
 
 
 def _train_and_score(
-    info: DirectionMethod, specs: tuple[str, ...], seed: int, config: PipelineConfig
+    info: DirectionMethod,
+    specs: tuple[str, ...],
+    seed: int,
+    config: PipelineConfig,
+    report: Reporter,
 ) -> DirectionModel:
     from qdcnn.direction.lane_data import load_lane_data
 
     assert info.grouping is not None
-    parts = [load_lane_data(spec, config, (info.grouping,), seed=seed) for spec in specs]
-    x = np.concatenate([p.features(info.grouping) for p in parts])
-    y = np.concatenate([p.y for p in parts])
-    model = train_direction_model(info, x, y, config, " + ".join(specs))
-    cv = cross_validate(lambda: info.estimator(config), x, y, folds=SCORE_FOLDS, gap=SCORE_GAP)
+    with report.progress(len(specs) + 2, f"built-in model {info.name}: train, score") as step:
+        parts = []
+        for spec in specs:
+            parts.append(load_lane_data(spec, config, (info.grouping,), seed=seed))
+            step()
+        x = np.concatenate([p.features(info.grouping) for p in parts])
+        y = np.concatenate([p.y for p in parts])
+        model = train_direction_model(info, x, y, config, " + ".join(specs))
+        step()
+        cv = cross_validate(lambda: info.estimator(config), x, y, folds=SCORE_FOLDS, gap=SCORE_GAP)
+        step()
     model.summary["cross_validation"] = {
         "folds": SCORE_FOLDS,
         "gap": SCORE_GAP,

@@ -22,7 +22,7 @@ from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
-from qdcnn.data.images import encode_image, list_images, read_image
+from qdcnn.data.images import encode_image, list_named_images, read_image
 from qdcnn.data.labels import DIRECTIONS
 from qdcnn.direction.builtin import DEFAULT_METHOD, DEFAULT_TRAINING_DATA, direction_model
 from qdcnn.direction.methods import get_method
@@ -140,16 +140,15 @@ class DetectLanesResult:
 def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> DetectLanesResult:
     """Decide a direction for every image of ``spec``, writing overlays and predictions.csv."""
     report = reporter or Reporter()
-    model = direction_model(spec.model, spec.method, spec.seed, spec.pipeline, report.note)
-    listing = list_images(spec.paths)
+    listing = list_named_images(spec.paths)
     if not listing.images and not listing.missing:
         raise InputError(", ".join(map(str, spec.paths)), "no image files found")
     if spec.out.exists() and not spec.out.is_dir():
         raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
+    model = direction_model(
+        spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
+    )
     result = DetectLanesResult(model, spec.out, skipped=listing.skipped)
-    for problem in listing.missing:
-        result.failures.append(Failure(problem.source, str(problem)))
-        report.failure(result.failures[-1])
     note_shared_stems(listing.images, report)
     with (
         ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,

@@ -20,6 +20,7 @@ from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
+from qdcnn.data.images import require_file
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
@@ -192,6 +193,8 @@ class EvaluationSpec:
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        if self.training.weights is not None:
+            require_file(self.training.weights, "weights file")
 
 
 @dataclass
@@ -277,33 +280,36 @@ def _evaluate_all(
     report: Reporter,
     executor: Any,
 ) -> None:
-    lane_methods = [m for m in methods if m.inputs == "lanes"]
-    if lane_methods:
-        lanes = _lane_data(spec, frames, lane_methods, report)
-        _add_failures(result, lanes.table.failures, report)
-        result.camera = lanes.table.camera
-        for note in lanes.camera_notes():
-            report.note(note)
-        for m in lane_methods:
-            res = _evaluate_lane_method(spec, m, lanes, executor)
+    with report.progress(len(methods), f"methods on {frames.name}") as method_done:
+        lane_methods = [m for m in methods if m.inputs == "lanes"]
+        if lane_methods:
+            lanes = _lane_data(spec, frames, lane_methods, report)
+            _add_failures(result, lanes.table.failures, report)
+            result.camera = lanes.table.camera
+            for note in lanes.camera_notes():
+                report.note(note)
+            for m in lane_methods:
+                res = _evaluate_lane_method(spec, m, lanes, executor)
+                res.extra["labels"] = result.labels
+                result.results.append(res)
+                report.result(res.to_dict())
+                method_done()
+        for m in (m for m in methods if m.inputs == "frames"):
+            res, failures = evaluate_frames(
+                m,
+                frames,
+                frames.labels(spec.config.labels),
+                config=spec.config,
+                options=spec.training,
+                folds=spec.folds,
+                gap=spec.gap,
+                executor=executor,
+            )
+            _add_failures(result, failures, report)
             res.extra["labels"] = result.labels
             result.results.append(res)
             report.result(res.to_dict())
-    for m in (m for m in methods if m.inputs == "frames"):
-        res, failures = evaluate_frames(
-            m,
-            frames,
-            frames.labels(spec.config.labels),
-            config=spec.config,
-            options=spec.training,
-            folds=spec.folds,
-            gap=spec.gap,
-            executor=executor,
-        )
-        _add_failures(result, failures, report)
-        res.extra["labels"] = result.labels
-        result.results.append(res)
-        report.result(res.to_dict())
+            method_done()
 
 
 def label_summary(frames: FrameSet, config: PipelineConfig, report: Reporter) -> dict[str, Any]:

@@ -21,7 +21,14 @@ from qdcnn.data.frames import load_frameset, parse_spec
 from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.errors import ParameterError
-from qdcnn.runtime.engine import InputResult, Progress, RunOptions, RunResult, run_inputs
+from qdcnn.runtime.engine import (
+    InputResult,
+    Progress,
+    RunOptions,
+    RunResult,
+    resolve_inputs,
+    run_inputs,
+)
 from qdcnn.runtime.reporting import Failure, Reporter
 
 __all__ = ["RunSpec", "run"]
@@ -83,7 +90,10 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
 
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
-    model = direction_model(spec.model, spec.method, spec.seed, spec.pipeline, report.note)
+    resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
+    model = direction_model(
+        spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
+    )
     processor = LaneDirectionProcessor(model, seed=spec.seed)
     with ExitStack() as stack:
         executor = stack.enter_context(Executor(spec.scheduler)) if spec.scheduler else None

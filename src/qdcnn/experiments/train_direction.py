@@ -34,6 +34,10 @@ class TrainDirectionSpec:
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        if self.training.weights is not None:
+            from qdcnn.data.images import require_file
+
+            require_file(self.training.weights, "weights file")
 
 
 @dataclass
@@ -87,15 +91,17 @@ def train_direction(
         failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable
     for f in failures:
         report.failure(f)
-    model = train_direction_model(
-        method,
-        inputs,
-        y,
-        spec.config,
-        spec.data,
-        inner_folds=spec.inner_folds,
-        gap=spec.gap,
-        options=spec.training,
-    )
+    with report.progress(1, f"training {method.name} on {len(y)} frames") as trained:
+        model = train_direction_model(
+            method,
+            inputs,
+            y,
+            spec.config,
+            spec.data,
+            inner_folds=spec.inner_folds,
+            gap=spec.gap,
+            options=spec.training,
+        )
+        trained()
     path = model.save(spec.out)
     return TrainDirectionResult(model, path, failures)

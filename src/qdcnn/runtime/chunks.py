@@ -47,7 +47,8 @@ class FrameOutcome:
     shadow_fraction : float or None
         Fraction of the frame's pixels detected as shadow.
     lane_status : str
-        ``"ok"``, ``"one-line"``, ``"no-lines"`` (lane stage) or another short word.
+        ``"ok"``, ``"one-line"``, ``"no-lines"``, ``"crossed"``, ``"wrong-side"`` (lane
+        stage, :func:`qdcnn.vision.grouping.pair_status`) or another short word.
     drawing : object
         Whatever the processor's ``draw`` needs (segments, lines, mask); never written out.
     """

@@ -66,7 +66,7 @@ from qdcnn.runtime.inputs import (
 from qdcnn.runtime.manifest import SUMMARY, InputLedger
 from qdcnn.runtime.scheduler import Executor, TaskFailure
 
-CHUNK_FRAMES = 512
+_CHUNK_FRAMES = 512
 FORMAT_VERSION = 1
 
 
@@ -209,7 +209,7 @@ class RunOptions:
         Overlay encoder (``"auto"``: libx264, else mpeg4, else OpenCV).
     """
 
-    chunk_frames: int = CHUNK_FRAMES
+    chunk_frames: int = _CHUNK_FRAMES
     smooth: int = 1
     overlay: bool = True
     force: bool = False

@@ -149,19 +149,25 @@ def _evaluate_dataset(
             | {"seconds": result["seconds"]}
         )
 
-    for m in lane:
-        run("paper", m, lambda m=m: _lane_result(ctx, m, lanes, "paper"))
     named = _named_methods(ctx, lane)
-    if named:
-        try:
-            named_lanes = ctx.lane_data(entry, "named")
-        except DatasetUnavailable as exc:
-            section.error(f"named options: {exc}")
-        else:
-            for m in named:
-                run("named", m, lambda m=m: _lane_result(ctx, m, named_lanes, "named"))
-    for m in frames_methods:
-        run("paper", m, lambda m=m: _frame_result(ctx, m, entry, out))
+    total = len(lane) + len(named) + len(frames_methods)
+    what = f"{section.id} methods, {entry.key} ({lanes.frames.name})"
+    with ctx.reporter.progress(total, what) as step:
+        for m in lane:
+            run("paper", m, lambda m=m: _lane_result(ctx, m, lanes, "paper"))
+            step()
+        if named:
+            try:
+                named_lanes = ctx.lane_data(entry, "named")
+            except DatasetUnavailable as exc:
+                section.error(f"named options: {exc}")
+            else:
+                for m in named:
+                    run("named", m, lambda m=m: _lane_result(ctx, m, named_lanes, "named"))
+                    step()
+        for m in frames_methods:
+            run("paper", m, lambda m=m: _frame_result(ctx, m, entry, out))
+            step()
     majorities = [r["majority_baseline"] for r in out["results"]["paper"].values()]
     out["majority_baseline"] = majorities[0] if majorities else None
     return out

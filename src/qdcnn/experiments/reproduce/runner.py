@@ -224,33 +224,35 @@ def run_reproduce(spec: ReproduceSpec, reporter: Reporter | None = None) -> Repr
     ctx = RunContext.create(spec, report)
     result = ReproduceResult(spec.out, [], reused=sorted(kept))
     seen_errors: set[str] = set()
-    for i, d in enumerate(SECTIONS, 1):
-        if isinstance(report, StageReporter):
-            report.stage(i, len(SECTIONS), d.title + (" (reused)" if d.id in kept else ""))
-        section = kept.get(d.id) or _compute(d, ctx)
-        ctx.sections[d.id] = section
-        if d.id not in kept:
-            atomic_write_text(
-                spec.out / "sections" / f"{d.id}.json",
-                json.dumps(section.to_dict(), indent=1, default=_jsonable),
+    with report.progress(len(SECTIONS), "reproduce sections") as section_done:
+        for i, d in enumerate(SECTIONS, 1):
+            if isinstance(report, StageReporter):
+                report.stage(i, len(SECTIONS), d.title + (" (reused)" if d.id in kept else ""))
+            section = kept.get(d.id) or _compute(d, ctx)
+            ctx.sections[d.id] = section
+            if d.id not in kept:
+                atomic_write_text(
+                    spec.out / "sections" / f"{d.id}.json",
+                    json.dumps(section.to_dict(), indent=1, default=_jsonable),
+                )
+            for message in section.errors:
+                failure = Failure(d.id, message)
+                result.failures.append(failure)
+                if message not in seen_errors:
+                    seen_errors.add(message)
+                    report.failure(failure)
+            report.result(
+                {
+                    "section": d.id,
+                    "title": d.title,
+                    "status": section.status,
+                    "seconds": section.seconds,
+                    "reused": d.id in kept,
+                }
             )
-        for message in section.errors:
-            failure = Failure(d.id, message)
-            result.failures.append(failure)
-            if message not in seen_errors:
-                seen_errors.add(message)
-                report.failure(failure)
-        report.result(
-            {
-                "section": d.id,
-                "title": d.title,
-                "status": section.status,
-                "seconds": section.seconds,
-                "reused": d.id in kept,
-            }
-        )
-        result.seconds = time.perf_counter() - t0
-        _write(ctx, result)
+            result.seconds = time.perf_counter() - t0
+            _write(ctx, result)
+            section_done()
     result.sections = [ctx.sections[i] for i in PAGE_ORDER]
     return result
 
