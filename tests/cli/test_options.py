@@ -67,6 +67,8 @@ HELP_PER_COMMAND = {
     "--cnn": "reproduce trains the CNNs, bench pipeline times them",
     "--shadow-set": "how the shadow set is used differs",
     "--video": "synth writes the drive, run the overlay",
+    "--label-threshold": "score defaults to the saved model's own label settings",
+    "--steering-unit": "score defaults to the saved model's own label settings",
 }
 #: Options whose default differs per command, and why.
 DEFAULT_PER_COMMAND = {
@@ -78,6 +80,8 @@ DEFAULT_PER_COMMAND = {
     "--quick": "demo is reproduce --quick",
     "--cnn": "reproduce chooses from torch and the profile",
     "--video": "synth writes no video unless asked, run writes the overlay",
+    "--label-threshold": "score: the saved model's own label settings unless given",
+    "--steering-unit": "score: the saved model's own label settings unless given",
     "--features": "train-shadows: the shadow model's features",
 }
 #: Options whose type or form differs per command, and why.
@@ -219,9 +223,16 @@ def test_noise_sweep_reads_the_lane_options() -> None:
 
 @pytest.mark.parametrize("command", ["run", "detect-lanes"])
 def test_a_model_file_and_lane_options_are_one_error(command: str, tmp_path: Any) -> None:
+    import numpy as np
+
+    from qdcnn.data.images import write_image
+
     model = tmp_path / "m.qdcnn"
     model.write_bytes(b"")
-    args = [command, str(tmp_path), "--out", str(tmp_path / "o"), "--model", str(model)]
+    images = tmp_path / "img"
+    images.mkdir()
+    write_image(images / "f.png", np.zeros((16, 32, 3), np.uint8))  # inputs are checked first
+    args = [command, str(images), "--out", str(tmp_path / "o"), "--model", str(model)]
     res = runner.invoke(app, [*args, "--lanes", "paper"])
     assert res.exit_code == 2
     assert "carries the lane settings it was trained with" in " ".join(res.stderr.split())
