@@ -285,11 +285,9 @@ def _evaluate_all(
         if lane_methods:
             lanes = _lane_data(spec, frames, lane_methods, report)
             _add_failures(result, lanes.table.failures, report)
-            if lanes.table.camera is not None:
-                result.camera = lanes.table.camera
-                report.note(f"{frames.name}: {lanes.table.camera['description']}")
-                for note in lanes.table.camera["notes"]:
-                    report.note(f"{frames.name}: {note}")
+            result.camera = lanes.table.camera
+            for note in lanes.camera_notes():
+                report.note(note)
             for m in lane_methods:
                 res = _evaluate_lane_method(spec, m, lanes, executor)
                 res.extra["labels"] = result.labels
