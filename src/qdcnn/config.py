@@ -542,12 +542,20 @@ class LabelConfig:
     steering_unit : {"auto", "norm", "rad", "deg"}
         Unit of the recorded steering; ``"auto"`` decides from the recording
         (:func:`qdcnn.data.labels.infer_steering_unit`).
+    threshold_quantile : float or None
+        A percentile in [1, 99] instead of ``threshold`` (``--label-threshold p33``):
+        the threshold is that percentile of ``|smoothed steering|`` over the TRAINING
+        frames, pooled across units and applied unchanged to test frames
+        (:func:`qdcnn.data.frames.resolve_quantile_threshold`). At most one of
+        ``threshold`` and ``threshold_quantile`` is set. A dataset spec's own
+        ``@threshold=`` overrides both for that recording.
     """
 
     window: int = 5
     max_gap_s: float = 1.0
     threshold: float | None = None
     steering_unit: str = "auto"
+    threshold_quantile: float | None = None
 
     def __post_init__(self) -> None:
         check_int("labels.window", self.window, 0, 10_000)
@@ -555,6 +563,14 @@ class LabelConfig:
         if self.threshold is not None:
             check_float("labels.threshold", self.threshold, 0.0, 1e6)
         check_choice("steering_unit", self.steering_unit, ("auto", "norm", "rad", "deg"))
+        if self.threshold_quantile is not None:
+            check_float("labels.threshold_quantile", self.threshold_quantile, 1.0, 99.0)
+            if self.threshold is not None:
+                raise ParameterError(
+                    "labels.threshold_quantile",
+                    self.threshold_quantile,
+                    f"not together with labels.threshold={self.threshold!r}",
+                )
 
 
 @dataclass(frozen=True)
@@ -656,14 +672,23 @@ class PipelineConfig:
         return replace(self, lanes=lanes, grouping=grouping)
 
     def with_labels(
-        self, *, steering_unit: str = "auto", threshold: float | None = None
+        self,
+        *,
+        steering_unit: str = "auto",
+        threshold: float | None = None,
+        threshold_quantile: float | None = None,
     ) -> PipelineConfig:
         """This config with the recording's steering unit and the label threshold set.
 
         The options ``--steering-unit`` and ``--label-threshold`` (``None``: the unit's
-        default threshold).
+        default threshold; ``pNN`` is ``threshold_quantile=NN``, see :class:`LabelConfig`).
         """
-        labels = replace(self.labels, steering_unit=steering_unit, threshold=threshold)
+        labels = replace(
+            self.labels,
+            steering_unit=steering_unit,
+            threshold=threshold,
+            threshold_quantile=threshold_quantile,
+        )
         return replace(self, labels=labels)
 
     def to_dict(self) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from qdcnn.vision.camera import CameraGeometry, apply_camera, estimate_camera, s
 from qdcnn.vision.grouping import LaneFeatures, group_segments
 from qdcnn.vision.lanes import detect_segments
 from qdcnn.vision.removal import remove_shadows
-from qdcnn.vision.roi import polygon_mask
+from qdcnn.vision.roi import polygon_mask, roi_rows
 from qdcnn.vision.shadows import detect_shadows_uu
 
 
@@ -91,6 +91,7 @@ def process_frame(
             extra_features=cfg.grouping.extra_features,
             merge_tolerance=cfg.grouping.merge_tolerance,
             inner_lines=cfg.grouping.inner_lines,
+            roi_rows=roi_rows(cfg.lanes.roi),
         )
         for g in groupings
     }

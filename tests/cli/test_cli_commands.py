@@ -52,10 +52,8 @@ def mixed_folder(tmp_path: Path) -> Path:
 
 def test_detect_shadows_continues_past_bad_files(mixed_folder: Path, tmp_path: Path) -> None:
     out = tmp_path / "masks"
-    missing = tmp_path / "nowhere.png"
     res = runner.invoke(
-        app,
-        ["detect-shadows", str(mixed_folder), str(missing), "--out", str(out), "--json", "--exact"],
+        app, ["detect-shadows", str(mixed_folder), "--out", str(out), "--json", "--exact"]
     )
     assert res.exit_code == 1
     objs = json_lines(res.stdout)  # stdout holds only JSON
@@ -65,7 +63,6 @@ def test_detect_shadows_continues_past_bad_files(mixed_folder: Path, tmp_path: P
     assert set(done) == {"rgb.png", "grey.png", "rgba.png", "deep16.png", "small.png"}
     errors = {Path(f["file"]).name: f["error"] for f in summary["failures"]}
     assert errors == {
-        "nowhere.png": f"{missing}: file not found",
         "corrupt.jpg": f"{mixed_folder / 'corrupt.jpg'}: not a readable image "
         "(corrupt or unsupported format)",
         "empty.png": f"{mixed_folder / 'empty.png'}: empty file (0 bytes)",
@@ -370,9 +367,10 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
     assert json.loads(res.stdout)["n"] == 100
     lanes = DirectionModel.load(model).config.lanes
     assert lanes.edge_channels == "rgb" and not lanes.remove_shadows
-    res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(tmp_path)])
+    drive = tmp_path / "drive"  # synth refuses a non-empty folder (the model is in tmp_path)
+    res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(drive)])
     assert res.exit_code == 0, res.stderr
-    frames = tmp_path / "udacity" / "IMG"
+    frames = drive / "udacity" / "IMG"
     res = runner.invoke(
         app,
         ["detect-lanes", str(frames), "--out", str(tmp_path / "lanes"), "--model", str(model)],

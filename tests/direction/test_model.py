@@ -87,6 +87,9 @@ def test_damaged_headers_are_named(tmp_path: Path) -> None:
     wrong_shape = {**arrays, "centroid_": np.zeros(3)}
     with pytest.raises(InputError, match="fitted attribute 'centroid_' is damaged"):
         DirectionModel.load(rewrite(header.meta, wrong_shape, "e.safetensors"))
+    other_classes = {**header.meta, "classes": ["left", "right"]}
+    with pytest.raises(InputError, match=r"g.safetensors: the model's classes \['left', 'right'\]"):
+        DirectionModel.load(rewrite(other_classes, arrays, "g.safetensors"))
     with pytest.raises(InputError, match="holds a 'qdcnn-shadow-model'"):
         save_model(tmp_path / "f.safetensors", "qdcnn-shadow-model", 1, {}, {})
         DirectionModel.load(tmp_path / "f.safetensors")

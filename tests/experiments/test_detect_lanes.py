@@ -5,11 +5,16 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
+from qdcnn import pipeline
 from qdcnn.data.images import write_image
 from qdcnn.data.synthetic import generate_scenes
 from qdcnn.experiments.detect_lanes import DetectLanesSpec, detect_lanes
+from qdcnn.experiments.run import RunSpec, run
+from qdcnn.runtime.engine import RunOptions
 from qdcnn.runtime.reporting import Collector
 
 
@@ -51,3 +56,58 @@ def test_without_a_model_the_default_is_trained_and_said(default_model_result) -
         f"{cv['majority_baseline']:.3f})"
     ]
     assert result.to_dict()["model_summary"]["n"] == 900
+
+
+#: Drawn roads (320x160, the built-in model's Udacity lane settings) with known lane statuses:
+#: lines crossing inside the ROI, lines leaning the wrong way, a straight road
+DRAWN = {
+    "crossed": [(60, 159, 200, 72), (260, 159, 120, 72)],
+    "wrong-side": [(100, 159, 40, 72), (220, 159, 280, 72)],
+    "ok": [(60, 159, 140, 72), (260, 159, 180, 72)],
+}
+
+
+def drawn_road(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
+    img = np.full((160, 320, 3), 90, np.uint8)
+    for x1, y1, x2, y2 in lines:
+        cv2.line(img, (x1, y1), (x2, y2), (230, 230, 230), 3)
+    return img
+
+
+@pytest.fixture
+def drawn_roads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A folder ``<status>.png`` per drawn road; shadow removal off (they have no shadows,
+    and on a flat grey road it would add edges of its own)."""
+    monkeypatch.setattr(pipeline, "remove_shadows", lambda image, mask, roi: image)
+    folder = tmp_path / "drawn"
+    for status, lines in DRAWN.items():
+        write_image(folder / f"{status}.png", drawn_road(lines))
+    return folder
+
+
+def test_pairs_that_cannot_be_a_road_are_flagged_in_predictions(
+    drawn_roads: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    collected = Collector()
+    result = detect_lanes(DetectLanesSpec((drawn_roads,), out), collected)
+    with open(out / "predictions.csv", newline="", encoding="utf-8") as fh:
+        rows = {Path(r["file"]).stem: r for r in csv.DictReader(fh)}
+    assert {name: r["status"] for name, r in rows.items()} == {s: s for s in DRAWN}
+    # flagged frames keep the pipeline's decision
+    assert all(r["direction"] in ("left", "straight", "right") for r in rows.values())
+    assert {Path(r["file"]).stem: r["status"] for r in collected.results} == {s: s for s in DRAWN}
+    assert result.exit_code == 0
+
+
+def test_pairs_that_cannot_be_a_road_are_flagged_in_frames_csv(
+    drawn_roads: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    result = run(RunSpec((str(drawn_roads),), out, options=RunOptions(overlay=False)))
+    assert result.inputs[0].ok
+    with open(out / "drawn" / "frames.csv", newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    # frames in name order: crossed, ok, wrong-side
+    assert [r["lane_status"] for r in rows] == sorted(DRAWN)
+    assert all(r["direction"] in ("left", "straight", "right") for r in rows)

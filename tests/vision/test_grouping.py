@@ -23,9 +23,11 @@ from qdcnn.vision.grouping import (
     fit_line,
     group_segments,
     mode_columns,
+    pair_status,
     segment_descriptors,
 )
 from qdcnn.vision.lanes import detect_segments
+from qdcnn.vision.roi import roi_rows
 
 H, W = 160, 320
 UDACITY = LaneConfig.udacity()
@@ -36,6 +38,14 @@ PAIRS = {
     "straight": [(60, 159, 140, 72), (260, 159, 180, 72)],
     "left-leaning": [(130, 159, 40, 72), (300, 159, 180, 72)],
     "right-leaning": [(20, 159, 140, 72), (190, 159, 280, 72)],
+}
+
+
+#: Drawn pairs that cannot be a road: lines crossing at y = 97 (inside the ROI, rows 67 to
+#: 159), and the two lines leaning the wrong way (they converge downwards)
+NOT_A_ROAD = {
+    "crossed": [(60, 159, 200, 72), (260, 159, 120, 72)],
+    "wrong-side": [(100, 159, 40, 72), (220, 159, 280, 72)],
 }
 
 
@@ -388,6 +398,9 @@ def test_bad_segments_raise_input_error() -> None:
         group_segments(np.array([[np.nan, 0, 1, 1]]), SHAPE)
 
 
+_NOT_A_ROAD = ("crossed", "wrong-side")  # pair_status flags on real frames
+
+
 @pytest.mark.realdata
 @pytest.mark.parametrize("recording", ["udacity-lake-track", "udacity-mountain-track"])
 def test_real_frames_extract_without_error(
@@ -402,7 +415,7 @@ def test_real_frames_extract_without_error(
         features = np.vstack([r.features for r in results])
         statuses = [r.status for r in results]
         assert features.shape == (50, 2)
-        counts = {s: statuses.count(s) for s in ("ok", "one-line", "no-lines")}
+        counts = {s: statuses.count(s) for s in ("ok", "one-line", "no-lines", *_NOT_A_ROAD)}
         assert sum(counts.values()) == 50
         record_property(f"{recording}/{method}", counts)
         print(recording, method, counts)
@@ -441,3 +454,40 @@ def test_inner_lines_keep_a_double_centre_line_as_one_line() -> None:
     segments = np.array([a, b, stub, (210, 72, 280, 159)], dtype=np.float64)
     result = group_segments(segments, SHAPE, "image-split", inner_lines=True)
     assert result.labels.tolist() == [0, 0, LEFT_OUT, 1]
+
+
+def test_pair_status_known_answers() -> None:
+    rows = (67.0, 159.0)
+    assert pair_status([(-1.0, 220.0), (1.0, 100.0)], rows) == "ok"  # meet at y = 60
+    assert pair_status([(-1.0, 220.0), (1.0, 20.0)], rows) == "crossed"  # meet at y = 100
+    assert pair_status([(0.5, 0.0), (-0.5, 300.0)], rows) == "wrong-side"  # lean the wrong way
+    assert pair_status([(0.0, 250.0), (0.0, 50.0)], rows) == "wrong-side"  # left right of right
+    assert pair_status([(0.2, 10.0), (0.3, 200.0)], rows) == "ok"  # a bend: both lean one way
+    assert pair_status([None, (0.3, 200.0)], rows) == "one-line"
+    assert pair_status([None, None], rows) == "no-lines"
+
+
+@pytest.mark.parametrize("method", GROUPINGS)
+@pytest.mark.parametrize("pair", NOT_A_ROAD)
+def test_a_pair_that_cannot_be_a_road_is_flagged_and_keeps_its_slopes(
+    method: str, pair: str
+) -> None:
+    lines = NOT_A_ROAD[pair]
+    result = lane_features(road(lines), UDACITY, method, roi_rows=roi_rows(UDACITY.roi))
+    assert result.status == pair
+    np.testing.assert_allclose(result.features, drawn_slopes(lines), rtol=0.03, atol=0.03)
+
+
+@pytest.mark.parametrize("method", GROUPINGS)
+def test_a_normal_road_in_the_roi_is_ok(method: str) -> None:
+    result = lane_features(
+        road(PAIRS["straight"]), UDACITY, method, roi_rows=roi_rows(UDACITY.roi)
+    )
+    assert result.status == "ok"
+
+
+def test_lines_crossing_above_the_roi_are_not_crossed() -> None:
+    # the crossed pair meets at y = 97: below a region that ends at row 80 they are apart
+    lines = [(-1.609, 315.8), (1.609, 4.2)]  # x = a y + b of NOT_A_ROAD["crossed"]
+    assert pair_status(lines, (100.0, 159.0)) == "ok"
+    assert pair_status(lines, (67.0, 159.0)) == "crossed"

@@ -21,6 +21,7 @@ from qdcnn.cli.direction import detect_lanes_cmd, evaluate_cmd, train_direction_
 from qdcnn.cli.noise import circuit_cmd, noise_sweep_cmd
 from qdcnn.cli.report import demo_cmd, reproduce_cmd
 from qdcnn.cli.run import run_cmd
+from qdcnn.cli.score import score_cmd
 from qdcnn.cli.shadows import detect_shadows_cmd, score_shadows_cmd, train_shadows_cmd
 from qdcnn.errors import QdcnnError
 
@@ -73,6 +74,7 @@ app.command("synth")(synth_cmd)
 app.command("evaluate")(evaluate_cmd)
 app.command("train-direction")(train_direction_cmd)
 app.command("detect-lanes")(detect_lanes_cmd)
+app.command("score")(score_cmd)
 app.command("noise-sweep")(noise_sweep_cmd)
 app.command("circuit")(circuit_cmd)
 app.command("run")(run_cmd)

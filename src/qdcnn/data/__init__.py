@@ -2,7 +2,7 @@
 
 =================  =================================================================
 ``frames``         :class:`FrameSet` and :func:`load_frameset` (``udacity:``, ``carla:``,
-                   ``synthetic:`` specs), :func:`stack_images`
+                   ``synthetic:`` specs, ``@unit=,threshold=`` suffixes), :func:`stack_images`
 ``images``         reading and writing images and masks, with one-line errors
 ``udacity``        Udacity ``driving_log.csv`` + ``IMG/`` recordings
 ``carla``          CARLA-style image folders with steering labels
@@ -20,11 +20,25 @@ from qdcnn._lazy import attach
 __getattr__, __dir__, __all__ = attach(
     __name__,
     {
-        "frames": ["FrameSet", "load_frameset", "parse_spec", "stack_images"],
+        "frames": [
+            "FrameSet",
+            "DataSpec",
+            "load_frameset",
+            "parse_spec",
+            "parse_data_spec",
+            "resolve_quantile_threshold",
+            "stack_images",
+        ],
         "images": ["read_image", "read_mask", "write_image", "write_mask", "list_images"],
         "udacity": ["load_udacity"],
         "carla": ["load_carla"],
-        "labels": ["DIRECTIONS", "direction_labels", "label_directions", "class_balance"],
+        "labels": [
+            "DIRECTIONS",
+            "Quantile",
+            "direction_labels",
+            "label_directions",
+            "class_balance",
+        ],
         "splits": ["ContiguousKFold", "validation_split"],
         "shadow_set": ["load_shadow_set"],
         "synthetic": [

@@ -1,5 +1,8 @@
 """Datasets named on the command line: ``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``.
 
+Any of them may end in ``@key=value[,key=value]`` with the recording's own label
+settings (``unit``, ``threshold``): see :func:`parse_data_spec`.
+
 A :class:`FrameSet` gives frames one at a time (read lazily from disk, or held
 in memory for synthetic drives), the steering per frame and its timestamps, so
 labels, features and CNN inputs all come from the same object.
@@ -8,8 +11,10 @@ labels, features and CNN inputs all come from the same object.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +23,14 @@ from numpy.typing import NDArray
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import LabelConfig
 from qdcnn.data.images import read_image
-from qdcnn.data.labels import DirectionLabels, SteeringUnit, label_directions
+from qdcnn.data.labels import (
+    DirectionLabels,
+    Quantile,
+    SteeringUnit,
+    label_directions,
+    unit_disagreement,
+    unit_free_steering,
+)
 from qdcnn.errors import InputError, ParameterError
 
 _DEFAULT_SYNTHETIC_FRAMES = 600
@@ -35,7 +47,7 @@ class FrameSet:
     name : str
         Short name for reports (folder name or ``synthetic-<preset>``).
     spec : str
-        The specification it was loaded from.
+        The specification it was loaded from, ``@`` suffix included.
     steering : ndarray of float64, shape (N,)
         Steering per frame (negative = left).
     timestamps : ndarray of float64 or None
@@ -44,6 +56,11 @@ class FrameSet:
         File path (or synthetic id) of each frame.
     problems : list of InputError
         Rows skipped while loading.
+    label_threshold : float, Quantile or None
+        The spec's own ``@threshold=`` (in ``unit``), used over the config's; ``None``:
+        the config decides.
+    notes : list of str
+        Warnings for people that runners report (a given unit the values disagree with).
     """
 
     name: str
@@ -55,6 +72,8 @@ class FrameSet:
     images: list[NDArray[np.uint8]] | None = None
     paths: list[Path] | None = None
     unit: SteeringUnit = field(default_factory=SteeringUnit)
+    label_threshold: float | Quantile | None = None
+    notes: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.sources)
@@ -66,29 +85,64 @@ class FrameSet:
         assert self.paths is not None
         return read_image(self.paths[i])
 
-    def labels(self, config: LabelConfig | None = None) -> NDArray[np.int64]:
+    def labels(
+        self, config: LabelConfig | None = None, *, train: Sequence[FrameSet] | None = None
+    ) -> NDArray[np.int64]:
         """Direction labels from steering smoothed as ``config`` says (see :meth:`label_info`)."""
-        return self.label_info(config).labels
+        return self.label_info(config, train=train).labels
 
-    def label_info(self, config: LabelConfig | None = None) -> DirectionLabels:
+    def threshold_request(self, config: LabelConfig | None = None) -> float | Quantile | None:
+        """The threshold asked for: the spec's ``@threshold=``, else ``config``'s
+        (``threshold`` or ``threshold_quantile``), else ``None`` (the unit's default)."""
+        cfg = config or LabelConfig()
+        if self.label_threshold is not None:
+            return self.label_threshold
+        if cfg.threshold_quantile is not None:
+            return Quantile(cfg.threshold_quantile)
+        return cfg.threshold
+
+    def label_info(
+        self, config: LabelConfig | None = None, *, train: Sequence[FrameSet] | None = None
+    ) -> DirectionLabels:
         """Labels with the unit and threshold that produced them.
 
         The steering unit is the one decided when the recording was loaded; the threshold
-        is ``config.threshold`` in that unit, or the unit's default when it is ``None``.
+        is :meth:`threshold_request` in that unit, or the unit's default when it is
+        ``None``. A percentile (:class:`~qdcnn.data.labels.Quantile`) is resolved on the
+        ``train`` frame sets only (:func:`resolve_quantile_threshold`; a training set
+        passes all training sets, itself included) and converted into this set's unit,
+        so every set, train or test, gets the same road-wheel threshold.
         """
         cfg = config or LabelConfig()
+        wanted = self.threshold_request(cfg)
+        if not isinstance(wanted, Quantile):
+            return self._labels_at(cfg, wanted)
+        if train is None:
+            raise ParameterError(
+                "label_threshold",
+                str(wanted),
+                f"a percentile of the training frames: label {self.name} with train=",
+            )
+        scale = resolve_quantile_threshold(train, wanted.percent, cfg)
+        info = self._labels_at(cfg, scale * self.unit.default_threshold)
+        return replace(info, threshold_source=f"{wanted} of the training frames")
+
+    def _labels_at(self, cfg: LabelConfig, threshold: float | None) -> DirectionLabels:
         return label_directions(
             self.steering,
             self.timestamps,
             unit=self.unit,
-            threshold=cfg.threshold,
+            threshold=threshold,
             window=cfg.window,
             max_gap_s=cfg.max_gap_s,
         )
 
     def fingerprint(self) -> str:
-        """Identity of the data for caches: spec, frame names, sizes and modification times."""
-        h = hashlib.sha256(os.fsencode(self.spec))
+        """Identity of the data for caches: spec, frame names, sizes and modification times.
+
+        The spec's ``@`` suffix (label settings) is left out: it changes no frame.
+        """
+        h = hashlib.sha256(os.fsencode(_split_suffix(self.spec)[0]))
         h.update(self.steering.tobytes())
         for src in self.sources:
             h.update(os.fsencode(src))
@@ -101,16 +155,126 @@ class FrameSet:
         return h.hexdigest()[:24]
 
 
+_SPEC_UNITS = ("norm", "rad", "deg", "auto")
+
+
+@dataclass(frozen=True)
+class DataSpec:
+    """A parsed dataset specification (:func:`parse_data_spec`).
+
+    Attributes
+    ----------
+    kind : {"udacity", "carla", "synthetic"}
+    value : str
+        The path, or ``PRESET[:N]``.
+    unit : str or None
+        The spec's ``@unit=`` (``norm``, ``rad``, ``deg`` or ``auto``); ``None``: not given.
+    threshold : float, Quantile or None
+        The spec's ``@threshold=``; ``None``: not given.
+    """
+
+    kind: str
+    value: str
+    unit: str | None = None
+    threshold: float | Quantile | None = None
+
+
 def parse_spec(spec: str) -> tuple[str, str]:
-    """Split ``KIND:VALUE`` and check the kind."""
+    """Split ``KIND:VALUE`` and check the kind (an ``@`` suffix is not split off here)."""
     kind, sep, value = spec.partition(":")
     if not sep or not value or kind not in ("udacity", "carla", "synthetic"):
         raise ParameterError("data", spec, "udacity:PATH, carla:PATH or synthetic:PRESET[:N]")
     return kind, value
 
 
+def parse_data_spec(text: str) -> DataSpec:
+    """Parse ``KIND:VALUE[@key=value[,key=value]]``.
+
+    The suffix after the last ``@`` (taken as one only when it holds ``=``, so a path
+    with ``@`` in it still works) carries this recording's own label settings; each
+    overrides the global option (``--steering-unit``, ``--label-threshold``) for this
+    recording only:
+
+    ``unit=norm|rad|deg|auto``
+        The unit of its steering.
+    ``threshold=NUMBER``
+        The label threshold in that unit (``|smoothed steering|`` at or below it is
+        straight).
+    ``threshold=pNN``
+        The NN-th percentile (1..99) of ``|smoothed steering|`` over the TRAINING frames,
+        pooled across units (:func:`resolve_quantile_threshold`).
+
+    Examples
+    --------
+    >>> spec = parse_data_spec("udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33")
+    >>> spec.kind, spec.value, spec.unit, spec.threshold
+    ('udacity', '../shared/data/real-dashcam-sample', 'rad', Quantile(percent=33.0))
+    >>> parse_data_spec("carla:/a/b")
+    DataSpec(kind='carla', value='/a/b', unit=None, threshold=None)
+
+    Raises
+    ------
+    ParameterError
+        ``data=<the spec>`` and the problem: a bad kind, an unknown or repeated key, a
+        unit not in the list, a threshold that is neither a number >= 0 nor ``pNN``.
+    """
+    head, suffix = _split_suffix(text)
+    try:
+        kind, value = parse_spec(head)
+    except ParameterError as e:
+        raise ParameterError("data", text, str(e).partition(": ")[2]) from None
+    settings = _spec_settings(text, suffix)
+    unit = settings.get("unit")
+    threshold = _spec_threshold(text, settings["threshold"]) if "threshold" in settings else None
+    return DataSpec(kind, value, unit, threshold)
+
+
+def _split_suffix(text: str) -> tuple[str, str]:
+    """``KIND:VALUE`` and the ``@`` suffix (``""`` when there is none)."""
+    head, at, suffix = text.rpartition("@")
+    return (head, suffix) if at and "=" in suffix else (text, "")
+
+
+def _spec_settings(text: str, suffix: str) -> dict[str, str]:
+    settings: dict[str, str] = {}
+    for item in suffix.split(",") if suffix else []:
+        key, eq, val = item.partition("=")
+        if not eq:
+            raise ParameterError("data", text, f"{item!r} in the @ suffix is not key=value")
+        if key not in ("unit", "threshold"):
+            raise ParameterError("data", text, f"unknown key {key!r} (keys: unit, threshold)")
+        if key in settings:
+            raise ParameterError("data", text, f"{key!r} given twice")
+        settings[key] = val
+    if "unit" in settings and settings["unit"] not in _SPEC_UNITS:
+        raise ParameterError(
+            "data", text, f"unit {settings['unit']!r} is not one of {', '.join(_SPEC_UNITS)}"
+        )
+    return settings
+
+
+def _spec_threshold(text: str, raw: str) -> float | Quantile:
+    try:
+        quantile = Quantile.parse(raw)
+    except ParameterError:
+        raise ParameterError(
+            "data", text, f"threshold {raw!r} is not pNN with a percentile in 1..99"
+        ) from None
+    if quantile is not None:
+        return quantile
+    try:
+        number = float(raw)
+    except ValueError:
+        number = math.nan
+    if not math.isfinite(number) or number < 0:
+        raise ParameterError(
+            "data", text, f"threshold {raw!r} is not a number >= 0 or pNN (a percentile)"
+        )
+    return number
+
+
 def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> FrameSet:
-    """Load a dataset from its specification.
+    """Load a dataset from its specification (:func:`parse_data_spec`).
 
     ``synthetic:PRESET[:N]`` renders a recording-like drive of ``N`` frames at the
     preset's natural size (320x160; 640x480 for ``dashcam``; default 600 frames, at most
@@ -118,47 +282,70 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
     :func:`qdcnn.data.synthetic.generate_drive`; its steering is in [-1, 1]. Recordings
     are read lazily; ``steering_unit`` says the unit of their steering (``"auto"``:
     decided from the recording, :func:`qdcnn.data.labels.infer_steering_unit`).
-    """
-    kind, value = parse_spec(spec)
-    if kind == "synthetic":
-        from qdcnn.data.synthetic import PRESETS, generate_drive
-        from qdcnn.data.synthetic_world import STYLES
 
-        preset, _, count = value.partition(":")
-        if preset not in PRESETS:
-            raise ParameterError("data", spec, f"a synthetic preset in {', '.join(PRESETS)}")
-        try:
-            n = int(count) if count else _DEFAULT_SYNTHETIC_FRAMES
-        except ValueError:
-            raise ParameterError("data", spec, "synthetic:PRESET[:N] with an integer N") from None
-        width, height = STYLES[preset].size  # the preset's natural frame size
-        most = _MAX_SYNTHETIC_BYTES // (width * height * 3)
-        if not 10 <= n <= most:
-            raise ParameterError(
-                "data",
-                spec,
-                f"between 10 and {most} synthetic {preset} frames (they are held in memory; "
-                "for longer drives write them with 'qdcnn synth --n N --out DIR' and use "
-                "udacity:DIR/udacity)",
-            )
-        scenes = generate_drive(preset, n, seed=seed, width=width, height=height)
-        times = np.arange(n) / 10.0
-        return FrameSet(
-            f"synthetic-{preset}",
+    A spec suffix ``@unit=...,threshold=...`` overrides ``steering_unit`` and the
+    config's label threshold for this recording only, e.g.
+    ``udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33`` (radians, the
+    straight class = the 33 % smallest |smoothed steering| of the training frames).
+    A synthetic drive takes ``unit=norm`` or ``auto`` only. A given unit that the values
+    exceed (rows beyond its limit skipped) adds a line to ``FrameSet.notes``.
+    """
+    parsed = parse_data_spec(spec)
+    if parsed.kind == "synthetic":
+        if parsed.unit not in (None, "auto", "norm"):
+            raise ParameterError("data", spec, "a synthetic drive steers in norm ([-1, 1])")
+        frames = _load_synthetic(spec, parsed.value, seed)
+    else:
+        frames = _load_recording(spec, parsed, parsed.unit or steering_unit)
+    frames.label_threshold = parsed.threshold
+    return frames
+
+
+def _load_synthetic(spec: str, value: str, seed: int) -> FrameSet:
+    from qdcnn.data.synthetic import PRESETS, generate_drive
+    from qdcnn.data.synthetic_world import STYLES
+
+    preset, _, count = value.partition(":")
+    if preset not in PRESETS:
+        raise ParameterError("data", spec, f"a synthetic preset in {', '.join(PRESETS)}")
+    try:
+        n = int(count) if count else _DEFAULT_SYNTHETIC_FRAMES
+    except ValueError:
+        raise ParameterError("data", spec, "synthetic:PRESET[:N] with an integer N") from None
+    width, height = STYLES[preset].size  # the preset's natural frame size
+    most = _MAX_SYNTHETIC_BYTES // (width * height * 3)
+    if not 10 <= n <= most:
+        raise ParameterError(
+            "data",
             spec,
-            np.array([s.steering for s in scenes]),
-            times,
-            [f"synthetic:{preset}:seed{seed}:frame{i}" for i in range(n)],
-            images=[s.image for s in scenes],
-            unit=SteeringUnit("norm", "norm", "the synthetic generator steers in [-1, 1]"),
+            f"between 10 and {most} synthetic {preset} frames (they are held in memory; "
+            "for longer drives write them with 'qdcnn synth --n N --out DIR' and use "
+            "udacity:DIR/udacity)",
         )
+    scenes = generate_drive(preset, n, seed=seed, width=width, height=height)
+    times = np.arange(n) / 10.0
+    return FrameSet(
+        f"synthetic-{preset}",
+        spec,
+        np.array([s.steering for s in scenes]),
+        times,
+        [f"synthetic:{preset}:seed{seed}:frame{i}" for i in range(n)],
+        images=[s.image for s in scenes],
+        unit=SteeringUnit("norm", "norm", "the synthetic generator steers in [-1, 1]"),
+    )
+
+
+def _load_recording(spec: str, parsed: DataSpec, steering_unit: str) -> FrameSet:
     from qdcnn.data.carla import load_carla
     from qdcnn.data.udacity import load_udacity
 
-    loader = load_udacity if kind == "udacity" else load_carla
-    rec = loader(value, steering_unit=steering_unit)
+    loader = load_udacity if parsed.kind == "udacity" else load_carla
+    rec = loader(parsed.value, steering_unit=steering_unit)
+    name = Path(parsed.value).resolve().name
+    beyond = sum(1 for p in rec.problems if _is_beyond_unit(p))
+    note = unit_disagreement(name, rec.unit, beyond, len(rec) + len(rec.problems))
     return FrameSet(
-        Path(value).resolve().name,
+        name,
         spec,
         np.asarray(rec.steering, dtype=np.float64),
         rec.timestamps,
@@ -166,7 +353,39 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
         list(rec.problems),
         paths=list(rec.frames),
         unit=rec.unit,
+        notes=[] if note is None else [note],
     )
+
+
+def _is_beyond_unit(problem: InputError) -> bool:
+    """A row the loader skipped for steering outside its unit's range
+    (:meth:`qdcnn.data.recording.LabelRows.finish` words it ``steering X is outside [..]``)."""
+    return problem.reason.startswith("steering ") and " is outside [" in problem.reason
+
+
+def resolve_quantile_threshold(
+    train_framesets: Sequence[FrameSet], q: float, config: LabelConfig | None = None
+) -> float:
+    """The ``q``-th percentile of ``|smoothed steering|`` over the training frames, unit-free.
+
+    Each set's smoothed steering is divided by its unit's default threshold
+    (:func:`~qdcnn.data.labels.unit_free_steering`), so a ``norm`` and a ``rad``
+    recording of the same drive give the same values and pool; multiply the result by a
+    set's ``unit.default_threshold`` for its threshold in its own unit
+    (:meth:`FrameSet.label_info` does). Only the sets passed are used: pass the
+    training sets, never the test sets.
+    """
+    cfg = config or LabelConfig()
+    Quantile(float(q))  # checks 1 <= q <= 99
+    if not train_framesets or not any(len(fs) for fs in train_framesets):
+        raise ParameterError("train", "<no frames>", "training frames to take a percentile of")
+    scaled = [
+        unit_free_steering(
+            fs.steering, fs.timestamps, fs.unit, window=cfg.window, max_gap_s=cfg.max_gap_s
+        )
+        for fs in train_framesets
+    ]
+    return float(np.percentile(np.concatenate(scaled), q))
 
 
 def stack_images(frames: FrameSet) -> tuple[NDArray[np.uint8], NDArray[np.bool_], list[Failure]]:

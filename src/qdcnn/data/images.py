@@ -76,6 +76,57 @@ def is_regular_file(path: PathArg) -> bool:
         return False
 
 
+def require_file(path: PathArg, what: str = "file") -> Path:
+    """``path`` if it is a regular file this process may read, else an :class:`InputError`.
+
+    The message names the path and says what is wrong: not found (or a broken symbolic
+    link), a folder or a FIFO where ``what`` is needed, or no permission to read.
+    """
+    p = _as_path(path)
+    mode = _existing_mode(p, what)
+    if stat.S_ISDIR(mode):
+        raise InputError(display_path(p), f"is a folder (a {what} is expected)")
+    if not stat.S_ISREG(mode):
+        raise InputError(
+            display_path(p), f"not a regular file ({_file_type(mode)}; a {what} is expected)"
+        )
+    return _readable(p, os.R_OK)
+
+
+def require_folder(path: PathArg, what: str = "folder") -> Path:
+    """``path`` if it is a folder this process may list, else an :class:`InputError`."""
+    p = _as_path(path)
+    if not stat.S_ISDIR(_existing_mode(p, what)):
+        raise InputError(display_path(p), f"is not a folder (a {what} is expected)")
+    return _readable(p, os.R_OK | os.X_OK)
+
+
+def require_file_or_folder(path: PathArg, what: str) -> Path:
+    """``path`` if it is a readable regular file or a listable folder."""
+    p = _as_path(path)
+    mode = _existing_mode(p, what)
+    if stat.S_ISDIR(mode):
+        return require_folder(p, what)
+    return require_file(p, what)
+
+
+def _existing_mode(p: Path, what: str) -> int:
+    try:
+        return os.stat(p).st_mode
+    except FileNotFoundError:
+        broken = " (a broken symbolic link)" if p.is_symlink() else ""
+        raise InputError(display_path(p), f"{what} not found{broken}") from None
+    except (OSError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or exc
+        raise InputError(display_path(p), f"cannot read: {reason}") from None
+
+
+def _readable(p: Path, mode: int) -> Path:
+    if not os.access(p, mode):
+        raise InputError(display_path(p), "cannot read: permission denied")
+    return p
+
+
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes; only regular files are opened, so a FIFO or a device never blocks."""
     shown = display_path(path)
@@ -316,7 +367,8 @@ class ImageListing:
     skipped : list of Path
         Files inside given folders that do not have an image suffix.
     missing : list of InputError
-        Given paths that do not exist, or given files that are not image files.
+        Given paths that do not exist or cannot be read, and given files that are not
+        image files.
     """
 
     images: list[Path] = field(default_factory=list)
@@ -328,28 +380,57 @@ def list_images(paths: Iterable[PathArg], recursive: bool = False) -> ImageListi
     """Expand files and folders into the image files to process.
 
     Folders contribute their files with an image suffix (sorted by name); other
-    files in them go to ``skipped``. A path given explicitly must exist and
-    carry an image suffix, or it is reported in ``missing``. Names that are not
+    files in them go to ``skipped``. A path given explicitly must be a readable
+    regular file with an image suffix or a folder this process may list, or it is
+    reported in ``missing``. Names that are not
     UTF-8 (``bytes`` paths, or such files inside a folder) are listed like any
     other; messages show their odd bytes as ``\\xNN``.
     """
     out = ImageListing()
     for raw in paths:
         p = _as_path(raw)
-        if p.is_dir():
-            children: Sequence[Path] = sorted(p.rglob("*") if recursive else p.iterdir())
-            for child in children:
-                if child.is_dir():
-                    continue
-                is_image = child.suffix.lower() in IMAGE_SUFFIXES
-                (out.images if is_image else out.skipped).append(child)
-        elif not p.exists():
-            out.missing.append(InputError(display_path(p), "file not found"))
-        elif p.suffix.lower() not in IMAGE_SUFFIXES:
-            suffix = display_path(p.suffix) if p.suffix else "none"
-            out.missing.append(
-                InputError(display_path(p), f"not an image file (suffix {suffix!r})")
-            )
-        else:
-            out.images.append(p)
+        try:
+            if p.is_dir():
+                _add_folder(out, require_folder(p), recursive)
+            else:
+                out.images.append(_named_image(p))
+        except InputError as exc:
+            out.missing.append(exc)
     return out
+
+
+def list_named_images(paths: Sequence[PathArg]) -> ImageListing:
+    """:func:`list_images`, for a run that must not start on a mistyped or unusable path.
+
+    Raises
+    ------
+    InputError
+        The first named path that is missing, unreadable or not an image file or folder,
+        or no image files at all under ``paths``.
+    """
+    listing = list_images(paths)
+    if listing.missing:
+        raise listing.missing[0]
+    if not listing.images:
+        raise InputError(", ".join(map(display_path, paths)), "no image files found")
+    return listing
+
+
+def _add_folder(out: ImageListing, folder: Path, recursive: bool) -> None:
+    try:
+        children: Sequence[Path] = sorted(folder.rglob("*") if recursive else folder.iterdir())
+    except OSError as exc:
+        raise InputError(display_path(folder), f"cannot list: {exc.strerror or exc}") from None
+    for child in children:
+        if child.is_dir():
+            continue
+        is_image = child.suffix.lower() in IMAGE_SUFFIXES
+        (out.images if is_image else out.skipped).append(child)
+
+
+def _named_image(p: Path) -> Path:
+    """A path given explicitly: an existing, readable file with an image suffix."""
+    if p.exists() and p.suffix.lower() not in IMAGE_SUFFIXES:
+        suffix = display_path(p.suffix) if p.suffix else "none"
+        raise InputError(display_path(p), f"not an image file (suffix {suffix!r})")
+    return require_file(p, "file")

@@ -120,6 +120,91 @@ class SteeringUnit:
         return f"{self.unit} ({_UNIT_NAMES[self.unit]}): {self.reason}"
 
 
+@dataclass(frozen=True)
+class Quantile:
+    """A label threshold taken from the data: the ``percent``-th percentile of
+    ``|smoothed steering|`` over the TRAINING frames (written ``pNN``, e.g. ``p33``).
+
+    It is resolved in a unit-free scale (:func:`unit_free_steering`), so recordings in
+    different units pool, then converted into each recording's own unit.
+
+    Examples
+    --------
+    >>> Quantile.parse("p33"), str(Quantile(12.5))
+    (Quantile(percent=33.0), 'p12.5')
+    >>> Quantile.parse("0.2") is None
+    True
+    """
+
+    percent: float
+
+    def __post_init__(self) -> None:
+        if not _QUANTILE_LOW <= self.percent <= _QUANTILE_HIGH:
+            raise ParameterError("threshold", str(self), _QUANTILE_RANGE)
+
+    def __str__(self) -> str:
+        return f"p{self.percent:g}"
+
+    @classmethod
+    def parse(cls, text: str) -> Quantile | None:
+        """``pNN`` as a :class:`Quantile`, ``None`` for text without the ``p``.
+
+        Raises :class:`ParameterError` for ``p`` followed by no number or one outside 1..99.
+        """
+        if not text.startswith("p"):
+            return None
+        try:
+            percent = float(text[1:])
+        except ValueError:
+            raise ParameterError("threshold", text, _QUANTILE_RANGE) from None
+        if not math.isfinite(percent) or not _QUANTILE_LOW <= percent <= _QUANTILE_HIGH:
+            raise ParameterError("threshold", text, _QUANTILE_RANGE)
+        return cls(percent)
+
+
+_QUANTILE_LOW, _QUANTILE_HIGH = 1.0, 99.0
+_QUANTILE_RANGE = "pNN with NN a percentile in 1..99"
+
+
+def unit_free_steering(
+    steering: ArrayLike,
+    timestamps: ArrayLike | None,
+    unit: SteeringUnit,
+    *,
+    window: int = _DEFAULTS.window,
+    max_gap_s: float = _DEFAULTS.max_gap_s,
+) -> NDArray[np.float64]:
+    """``|smoothed steering|`` in multiples of the unit's default threshold.
+
+    1.0 is the same road-wheel angle (1.25 degrees) in every unit
+    (:data:`DEFAULT_THRESHOLDS`), so values of recordings in different units compare
+    and pool. A threshold ``t`` on this scale is ``t * unit.default_threshold`` in a
+    recording's own unit.
+
+    Examples
+    --------
+    >>> unit_free_steering([0.1, -0.05], None, SteeringUnit("norm"), window=0).tolist()
+    [2.0, 1.0]
+    """
+    smooth = smooth_steering(steering, timestamps, window=window, max_gap_s=max_gap_s)
+    return np.abs(smooth) / unit.default_threshold
+
+
+def unit_disagreement(name: str, unit: SteeringUnit, skipped_beyond: int, total: int) -> str | None:
+    """A note when a GIVEN unit disagrees with the values, else ``None``.
+
+    ``skipped_beyond`` rows of ``total`` had ``|steering|`` beyond the unit's limit
+    (``unit.limit``: 1 for ``norm``) and were skipped by the loader; with an ``auto``
+    unit the inference already weighed them, so there is no note.
+    """
+    if unit.requested == "auto" or skipped_beyond == 0:
+        return None
+    return (
+        f"{name}: {skipped_beyond} of {total} rows have |steering| beyond the {unit.unit} "
+        f"limit {unit.limit:g} and were skipped; is unit={unit.unit} right for this recording?"
+    )
+
+
 def check_steering_unit(value: object) -> str:
     """``value`` if it is one of :data:`_STEERING_UNITS`, else :class:`ParameterError`."""
     if not isinstance(value, str) or value not in _STEERING_UNITS:

@@ -8,10 +8,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.batch import Failure, run_batch
-from qdcnn.data.images import IMAGE_SUFFIXES, read_image, read_mask
+from qdcnn.data.images import IMAGE_SUFFIXES, read_image, read_mask, require_folder
 from qdcnn.errors import InputError
 
-__all__ = ["index_by_stem", "load_shadow_set"]
+__all__ = ["index_by_stem", "load_shadow_set", "require_shadow_set"]
 
 
 def index_by_stem(folder: Path) -> dict[str, Path]:
@@ -23,6 +23,16 @@ def index_by_stem(folder: Path) -> dict[str, Path]:
     }
 
 
+def require_shadow_set(folder: Path) -> tuple[Path, Path]:
+    """The ``images/`` and ``masks/`` folders of a shadow set, or an :class:`InputError`."""
+    require_folder(folder, "shadow set folder")
+    images_dir, masks_dir = folder / "images", folder / "masks"
+    for d in (images_dir, masks_dir):
+        if not d.is_dir():
+            raise InputError(d, "folder not found (a shadow set has images/ and masks/)")
+    return images_dir, masks_dir
+
+
 def load_shadow_set(
     folder: Path,
 ) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.bool_]], list[Failure]]:
@@ -31,10 +41,7 @@ def load_shadow_set(
     Pairs with an unreadable image or mask, or a missing mask, are failures; the
     others are returned.
     """
-    images_dir, masks_dir = folder / "images", folder / "masks"
-    for d in (images_dir, masks_dir):
-        if not d.is_dir():
-            raise InputError(d, "folder not found (a shadow set has images/ and masks/)")
+    images_dir, masks_dir = require_shadow_set(folder)
     masks = index_by_stem(masks_dir)
     images, truth = [], []
 

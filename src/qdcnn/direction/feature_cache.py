@@ -4,9 +4,9 @@ One entry is an ``.npz`` file (NumPy's zip of arrays, read with
 ``allow_pickle=False``) holding, for ``N`` frames and each grouping ``g``:
 
 ``features/g``  float64 ``(N, width)``; ``status/g``  str ``(N,)`` (``ok``,
-``one-line``, ``no-lines``, ``unreadable``); ``readable``  bool ``(N,)``;
-``seconds``  float64 scalar; ``failures``  str ``(M,)``, one JSON object
-``{"file", "error"}`` per unreadable frame.
+``one-line``, ``no-lines``, ``crossed``, ``wrong-side``, ``unreadable``);
+``readable``  bool ``(N,)``; ``seconds``  float64 scalar; ``failures``  str ``(M,)``, one
+JSON object ``{"file", "error"}`` per unreadable frame.
 
 Writers put the whole file in place in one rename under a unique temporary name
 (:func:`qdcnn._fileio.atomic_write_bytes`), so processes computing the same entry
@@ -35,7 +35,7 @@ from qdcnn._fileio import atomic_write_bytes
 from qdcnn.batch import Failure
 from qdcnn.errors import InputError
 
-_STATUSES = frozenset({"ok", "one-line", "no-lines", "unreadable"})
+_STATUSES = frozenset({"ok", "one-line", "no-lines", "crossed", "wrong-side", "unreadable"})
 #: ``(path, reason)`` -> None: told about every unusable entry before it is removed.
 _BadEntryHandler = Callable[[Path, str], None]
 

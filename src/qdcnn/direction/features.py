@@ -43,7 +43,9 @@ class FeatureTable:
         Slopes (then extra features) per frame; NaN where a line is missing or
         the frame was unreadable.
     status : dict of str to ndarray of str, shape (N,)
-        ``ok``, ``one-line``, ``no-lines`` or ``unreadable`` per frame.
+        ``ok``, ``one-line``, ``no-lines``, ``crossed``, ``wrong-side`` (two lines that
+        cannot border a road, :func:`qdcnn.vision.grouping.pair_status`) or ``unreadable``
+        per frame.
     readable : ndarray of bool, shape (N,)
         Frames that could be read.
     failures : list of Failure
@@ -61,7 +63,7 @@ class FeatureTable:
     camera: dict[str, Any] | None = None
 
     def frames_without_lines(self, grouping: str) -> int:
-        """Readable frames where fewer than two lines were found."""
+        """Readable frames without two lines that can border a road (status not "ok")."""
         return int(np.sum(self.readable & (self.status[grouping] != "ok")))
 
 

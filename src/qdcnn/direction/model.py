@@ -128,11 +128,13 @@ class DirectionModel:
         Raises
         ------
         InputError
-            Missing, corrupt, pickle-based or foreign file, an unknown method, or settings
-            and arrays that do not fit the method's estimator (one line naming the file).
+            Missing, corrupt, pickle-based or foreign file, classes other than left,
+            straight, right, an unknown method, or settings and arrays that do not fit the
+            method's estimator (one line naming the file).
         """
         header, arrays = load_model(path, KIND, {FORMAT_VERSION})
         meta = header.meta
+        _check_classes(meta.get("classes", list(DIRECTIONS)), path)
         try:
             method = get_method(str(meta["method"]))
             config = PipelineConfig.from_dict(meta["config"])
@@ -149,6 +151,16 @@ class DirectionModel:
             estimator,
             str(meta.get("trained_on", "")),
             dict(meta.get("summary", {})),
+        )
+
+
+def _check_classes(classes: Any, path: str | os.PathLike[str]) -> None:
+    """The file's classes are qdcnn's left, straight, right, in that order."""
+    if classes != list(DIRECTIONS):
+        raise InputError(
+            path,
+            f"the model's classes {classes!r} are not {list(DIRECTIONS)!r}: it was trained "
+            "for other labels than qdcnn's directions",
         )
 
 

@@ -8,6 +8,7 @@ they run lives below: :mod:`qdcnn.direction` (methods, protocol, models) and
 ``evaluate``           ``qdcnn evaluate``
 ``train_direction``    ``qdcnn train-direction``
 ``detect_lanes``       ``qdcnn detect-lanes``
+``score``              ``qdcnn score`` (a direction model on labelled data)
 ``shadow_batch``       ``qdcnn detect-shadows``, ``score-shadows``, ``train-shadows``
 ``synth``              ``qdcnn synth``
 ``run``                ``qdcnn run`` (videos, folders, recordings; resumable, Dask)
@@ -28,6 +29,7 @@ __getattr__, __dir__, __all__ = attach(
         "train_direction": ["TrainDirectionSpec", "train_direction"],
         "evaluate": ["EvaluationSpec", "run_evaluation", "evaluate_features", "evaluate_frames"],
         "detect_lanes": ["DetectLanesSpec", "detect_lanes"],
+        "score": ["ScoreSpec", "run_score"],
         "shadow_batch": [
             "ShadowDetectionSpec",
             "run_shadow_detection",

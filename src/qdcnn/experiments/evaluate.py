@@ -21,6 +21,7 @@ from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
+from qdcnn.data.images import require_file
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
@@ -312,6 +313,8 @@ class EvaluationSpec:
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        if self.training.weights is not None:
+            require_file(self.training.weights, "weights file")
         check_int("seeds", self.seeds, 1, 1000)
         if bool(self.train) != bool(self.test):
             raise ParameterError(
@@ -492,11 +495,9 @@ def _evaluate_all(
         if lane_methods:
             lanes = _lane_data(spec, frames, lane_methods, report)
             _add_failures(result, lanes.table.failures, report)
-            if lanes.table.camera is not None:
-                result.camera = lanes.table.camera
-                report.note(f"{frames.name}: {lanes.table.camera['description']}")
-                for note in lanes.table.camera["notes"]:
-                    report.note(f"{frames.name}: {note}")
+            result.camera = lanes.table.camera
+            for note in lanes.camera_notes():
+                report.note(note)
             for m in lane_methods:
                 res = _evaluate_lane_method(spec, m, lanes, executor)
                 res.extra["labels"] = result.labels

@@ -18,7 +18,14 @@ from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_bool, check_float, check_int, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import ShadowConfig
-from qdcnn.data.images import encode_mask, list_images, read_image, read_mask, write_mask
+from qdcnn.data.images import (
+    encode_mask,
+    list_named_images,
+    read_image,
+    read_mask,
+    require_folder,
+    write_mask,
+)
 from qdcnn.data.shadow_set import index_by_stem, load_shadow_set
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.manifest import ResumableBatch
@@ -48,22 +55,6 @@ class MaskRecord:
             "mask": self.mask,
             "resumed": self.resumed,
         }
-
-
-@dataclass
-class DetectionPlan:
-    """Images to process and paths passed over before any work starts."""
-
-    images: list[Path]
-    skipped: list[Path] = field(default_factory=list)
-    failures: list[Failure] = field(default_factory=list)
-
-
-def plan_detection(paths: Sequence[str | Path]) -> DetectionPlan:
-    """Expand paths; missing paths and non-image files become failures up front."""
-    listing = list_images(paths)
-    failures = [Failure(e.source, str(e)) for e in listing.missing]
-    return DetectionPlan(listing.images, listing.skipped, failures)
 
 
 def mask_path(out_dir: Path, image: Path, stem: str | None = None) -> Path:
@@ -139,8 +130,7 @@ def score_folders(pred_dir: Path, gt_dir: Path) -> ScoreReport:
     are still scored.
     """
     for folder, what in ((pred_dir, "prediction"), (gt_dir, "ground-truth")):
-        if not folder.is_dir():
-            raise InputError(folder, f"{what} folder not found")
+        require_folder(folder, f"{what} folder")
     truth = index_by_stem(gt_dir)
     preds = [p for p in index_by_stem(pred_dir).values() if p.stem.endswith("_mask")]
     if not preds:
@@ -267,25 +257,20 @@ def run_shadow_detection(
     """Detect shadows in every image of ``spec``; each mask is written and reported as it ends."""
     report = reporter or Reporter()
     model = ShadowModel.load(spec.model) if spec.model else None
-    plan = plan_detection(spec.paths)
-    if not plan.images and not plan.failures:
-        raise InputError(", ".join(map(str, spec.paths)), "no image files found")
+    listing = list_named_images(spec.paths)
     if spec.out.exists() and not spec.out.is_dir():
         raise InputError(spec.out, "exists and is not a folder (--out names a folder for masks)")
     quantum = spec.method in QUANTUM_DETECTORS
     result = ShadowDetectionResult(
-        spec.method, spec.out, spec.config.shots if quantum else None, skipped=plan.skipped
+        spec.method, spec.out, spec.config.shots if quantum else None, skipped=listing.skipped
     )
-    for f in plan.failures:
-        result.failures.append(f)
-        report.failure(f)
-    note_shared_stems(plan.images, report)
+    note_shared_stems(listing.images, report)
     with (
         ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,
-        report.progress(len(plan.images), f"detect-shadows {spec.method}") as advance,
+        report.progress(len(listing.images), f"detect-shadows {spec.method}") as advance,
     ):
         items = detect_files(
-            plan.images,
+            listing.images,
             spec.method,
             spec.out,
             spec.config,

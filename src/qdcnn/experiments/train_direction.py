@@ -44,6 +44,10 @@ class TrainDirectionSpec:
         check_int("gap", self.gap, 0, 10_000)
         if self.inner_folds != 0:
             check_int("inner_folds", self.inner_folds, 2, 100)
+        if self.training.weights is not None:
+            from qdcnn.data.images import require_file
+
+            require_file(self.training.weights, "weights file")
 
 
 @dataclass

@@ -23,7 +23,7 @@ from qdcnn.errors import ParameterError
 
 # tan((x - theta)/2) diverges as |x - theta| -> pi; a step is capped at this size
 # (radians) so that a far outlier cannot throw the centroid out of [0, pi].
-MAX_STEP = np.pi / 4
+_MAX_STEP = np.pi / 4
 
 
 @dataclass
@@ -52,11 +52,11 @@ class PropagationResult:
 def propagation_step(
     theta: float, x: NDArray[np.float64], weights: NDArray[np.float64] | None = None
 ) -> float:
-    """One averaged Newton step ``mean_i tan((x_i - theta) / 2)``, capped at :data:`MAX_STEP`."""
+    """One averaged Newton step ``mean_i tan((x_i - theta) / 2)``, capped at :data:`_MAX_STEP`."""
     half = np.subtract(x, theta) * 0.5
     np.tan(np.clip(half, -1.5, 1.5, out=half), out=half)
     step = float(half.mean()) if weights is None else float(half @ weights) / float(weights.sum())
-    return min(max(step, -MAX_STEP), MAX_STEP)
+    return min(max(step, -_MAX_STEP), _MAX_STEP)
 
 
 def propagate_centroid(

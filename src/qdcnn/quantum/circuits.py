@@ -26,10 +26,10 @@ from qdcnn._validation import check_shape
 from qdcnn.errors import ParameterError
 from qdcnn.quantum import gates
 
-ONE_QUBIT_PARAMETRIC = frozenset(gates.PARAMETRIC)
-ONE_QUBIT_CONSTANT = frozenset(gates.CONSTANT)
+_ONE_QUBIT_PARAMETRIC = frozenset(gates.PARAMETRIC)
+_ONE_QUBIT_CONSTANT = frozenset(gates.CONSTANT)
 TWO_QUBIT = frozenset({"cx", "cz"})
-GATE_NAMES = ONE_QUBIT_PARAMETRIC | ONE_QUBIT_CONSTANT | TWO_QUBIT
+GATE_NAMES = _ONE_QUBIT_PARAMETRIC | _ONE_QUBIT_CONSTANT | TWO_QUBIT
 
 
 @dataclass(frozen=True)
@@ -188,8 +188,8 @@ class CircuitBuilder:
         ``rot`` takes its three angles ``(phi, theta, omega)`` as the last axis of
         ``angle``: shape ``(3,)`` (shared) or ``(B, 3)``.
         """
-        qs = check_gate(name, qubits, self.num_qubits)
-        needs_angle = name in ONE_QUBIT_PARAMETRIC
+        qs = _check_gate(name, qubits, self.num_qubits)
+        needs_angle = name in _ONE_QUBIT_PARAMETRIC
         if needs_angle != (angle is not None):
             raise ParameterError(f"{name} angle", angle, "an angle" if needs_angle else "no angle")
         self.gates.append(Gate(name, qs, None if angle is None else self._angle(name, angle)))
@@ -250,7 +250,7 @@ def check_num_qubits(num_qubits: int, most: int = 12) -> int:
     return int(num_qubits)
 
 
-def check_gate(name: str, qubits: tuple[int, ...], num_qubits: int) -> tuple[int, ...]:
+def _check_gate(name: str, qubits: tuple[int, ...], num_qubits: int) -> tuple[int, ...]:
     """The qubits of gate ``name`` if the name is known and the qubits fit, else raise."""
     if name not in GATE_NAMES:
         raise ParameterError("gate", name, f"one of {sorted(GATE_NAMES)}")
@@ -387,7 +387,7 @@ class TemplateBuilder:
         self, name: str, qubits: tuple[int, ...], slots: tuple[int, ...] = ()
     ) -> TemplateBuilder:
         """Append gate ``name`` on ``qubits`` whose angles are parameters ``slots``."""
-        qs = check_gate(name, qubits, self.num_qubits)
+        qs = _check_gate(name, qubits, self.num_qubits)
         count = gates.ANGLE_COUNT.get(name, 0)
         n_params = self.num_inputs + self.num_weights
         if len(slots) != count or not all(

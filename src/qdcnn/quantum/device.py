@@ -93,19 +93,19 @@ from qdcnn.quantum.circuits import CircuitBatch, Gate
 from qdcnn.quantum.noise import Channel, Kraus, NoiseSpec
 
 #: the one-qubit native gates qdcnn circuits are rewritten into
-NATIVE_ONE_QUBIT: tuple[str, ...] = ("rz", "sx", "x")
+_NATIVE_ONE_QUBIT: tuple[str, ...] = ("rz", "sx", "x")
 #: the two-qubit native gates a device may have (one of them)
-NATIVE_TWO_QUBIT: tuple[str, ...] = ("cx", "ecr", "cz")
-ROUTES: tuple[str, ...] = ("none", "swap")
-PLACEMENTS: tuple[str, ...] = ("best", "first")
-READOUT_MODELS: tuple[str, ...] = ("asymmetric", "symmetric", "none")
+_NATIVE_TWO_QUBIT: tuple[str, ...] = ("cx", "ecr", "cz")
+_ROUTES: tuple[str, ...] = ("none", "swap")
+_PLACEMENTS: tuple[str, ...] = ("best", "first")
+_READOUT_MODELS: tuple[str, ...] = ("asymmetric", "symmetric", "none")
 #: placement steps the default layout search takes at most (then: the best found so far)
-LAYOUT_SEARCH_BUDGET = 200_000
+_LAYOUT_SEARCH_BUDGET = 200_000
 
 _TWO_QUBIT = frozenset({"cx", "cz"})
 
 
-def available_backends() -> list[str]:
+def _available_backends() -> list[str]:
     """Names of the offline fake backends of ``qiskit_ibm_runtime.fake_provider``."""
     fake_provider = require("qiskit_ibm_runtime", "device noise").fake_provider
     from qiskit_ibm_runtime.fake_provider.fake_backend import FakeBackendV2
@@ -120,7 +120,7 @@ def available_backends() -> list[str]:
 
 
 def _backend_class_name(name: str) -> str:
-    names = available_backends()
+    names = _available_backends()
     by_lower = {n.lower(): n for n in names}
     if name.lower() not in by_lower:
         raise ParameterError("device", name, f"an IBM fake backend, one of {', '.join(names)}")
@@ -178,7 +178,7 @@ class DeviceCalibration:
     @property
     def native_gates(self) -> tuple[str, ...]:
         """``rz``, ``sx``, ``x`` and the two-qubit gate."""
-        return NATIVE_ONE_QUBIT + ((self.two_qubit_gate,) if self.two_qubit_gate else ())
+        return _NATIVE_ONE_QUBIT + ((self.two_qubit_gate,) if self.two_qubit_gate else ())
 
     def channel(self, gate: str, qubits: tuple[int, ...]) -> Kraus | None:
         """Kraus operators of the error after ``gate`` on physical ``qubits`` (``None``: none).
@@ -249,9 +249,9 @@ def _native_two_qubit_gates(backend: Any, class_name: str) -> list[str]:
     refusing a backend without native ``rz``, ``sx``, ``x`` and exactly one of ``cx``,
     ``ecr``, ``cz``."""
     ops = set(backend.target.operation_names)
-    two_qubit = [g for g in NATIVE_TWO_QUBIT if g in ops]
+    two_qubit = [g for g in _NATIVE_TWO_QUBIT if g in ops]
     if (
-        any(g not in ops for g in NATIVE_ONE_QUBIT)
+        any(g not in ops for g in _NATIVE_ONE_QUBIT)
         or len(two_qubit) > 1
         or (backend.num_qubits > 1 and not two_qubit)
     ):
@@ -310,8 +310,8 @@ def load_calibration(
         For an unknown backend (the message lists them) or one without native ``rz``,
         ``sx``, ``x`` and one of ``cx``, ``ecr``, ``cz``.
     """
-    if readout not in READOUT_MODELS:
-        raise ParameterError("readout", readout, f"one of {', '.join(READOUT_MODELS)}")
+    if readout not in _READOUT_MODELS:
+        raise ParameterError("readout", readout, f"one of {', '.join(_READOUT_MODELS)}")
     class_name = _backend_class_name(name)
     require("qiskit_aer", "device noise")
     from qiskit_aer.noise.device.models import basic_device_gate_errors
@@ -321,7 +321,7 @@ def load_calibration(
     target = backend.target
     two_qubit = _native_two_qubit_gates(backend, class_name)
     gate2 = two_qubit[0] if two_qubit else ""
-    native = (*NATIVE_ONE_QUBIT, *two_qubit)
+    native = (*_NATIVE_ONE_QUBIT, *two_qubit)
     errors = basic_device_gate_errors(
         target=target, gate_error=gate_error, thermal_relaxation=thermal_relaxation
     )
@@ -473,8 +473,8 @@ def default_layout(
     without a partner among lower ones coupled to the previous qubit), the one of least
     estimated error; ``"first"``: the lexicographically smallest.
     """
-    if placement not in PLACEMENTS:
-        raise ParameterError("placement", placement, f"one of {', '.join(PLACEMENTS)}")
+    if placement not in _PLACEMENTS:
+        raise ParameterError("placement", placement, f"one of {', '.join(_PLACEMENTS)}")
     n = circuit.num_qubits
     if n > cal.num_qubits:
         raise ParameterError(
@@ -483,10 +483,10 @@ def default_layout(
     cost = _LayoutCost.of(circuit) if placement == "best" else None
     partners = _cx_partners(circuit)
     coupled = [sorted(j for j in partners[i] if j < i) or ([i - 1] if i else []) for i in range(n)]
-    found = _search_placement(coupled, cal, LAYOUT_SEARCH_BUDGET, cost)
+    found = _search_placement(coupled, cal, _LAYOUT_SEARCH_BUDGET, cost)
     if found is None:
         chain = [[i - 1] if i else [] for i in range(n)]
-        found = _search_placement(chain, cal, LAYOUT_SEARCH_BUDGET, cost)
+        found = _search_placement(chain, cal, _LAYOUT_SEARCH_BUDGET, cost)
     if found is None:
         raise ParameterError(
             "layout", None, f"a chain of {n} coupled qubits, which {cal.name} lacks: give a layout"
@@ -494,7 +494,7 @@ def default_layout(
     return found
 
 
-def check_layout(layout: object, cal: DeviceCalibration) -> tuple[int, ...]:
+def _check_layout(layout: object, cal: DeviceCalibration) -> tuple[int, ...]:
     """Return ``layout`` as a tuple of distinct physical qubits of ``cal``, else raise."""
     try:
         out = tuple(int(q) for q in layout)  # type: ignore[attr-defined]
@@ -762,12 +762,12 @@ class DeviceNoise(NoiseSpec):
     calibration: DeviceCalibration = field(repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        if self.route not in ROUTES:
-            raise ParameterError("route", self.route, f"one of {', '.join(ROUTES)}")
-        if self.placement not in PLACEMENTS:
-            raise ParameterError("placement", self.placement, f"one of {', '.join(PLACEMENTS)}")
+        if self.route not in _ROUTES:
+            raise ParameterError("route", self.route, f"one of {', '.join(_ROUTES)}")
+        if self.placement not in _PLACEMENTS:
+            raise ParameterError("placement", self.placement, f"one of {', '.join(_PLACEMENTS)}")
         if self.layout is not None:
-            object.__setattr__(self, "layout", check_layout(self.layout, self.calibration))
+            object.__setattr__(self, "layout", _check_layout(self.layout, self.calibration))
 
     def __deepcopy__(self, memo: dict[int, Any]) -> DeviceNoise:
         return self  # immutable, and its calibration is read-only (scikit-learn clones params)
@@ -942,7 +942,7 @@ def parse_device_noise(text: str) -> DeviceNoise:
         raise ParameterError("noise", text, "device:NAME, e.g. device:FakeManilaV2")
     layout = None
     placement = options.get("layout", "best")
-    if placement not in PLACEMENTS:
+    if placement not in _PLACEMENTS:
         try:
             layout = tuple(int(q) for q in placement.split("-"))
         except ValueError:

@@ -81,12 +81,12 @@ from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.execute import check_backend, run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
 
-ANGLE_MAPS: tuple[str, ...] = ("arctan", "minmax", "identity")
+_ANGLE_MAPS: tuple[str, ...] = ("arctan", "minmax", "identity")
 N_CLASSES = len(DIRECTIONS)
 _DEFAULTS = DirectionConfig()
 #: Most one-qubit circuits simulated in one call of the grid search, with or without noise
 #: (under noise a circuit is a 2 x 2 density matrix: about 0.3 GB of work arrays per call).
-MAX_SEARCH_BATCH = 1_000_000
+_MAX_SEARCH_BATCH = 1_000_000
 
 
 # ---------------------------------------------------------------- shared helpers
@@ -146,7 +146,7 @@ def grid_search(
     """Training accuracy of the rule for every centroid x margin, and the chosen cell.
 
     The probabilities of all centroids x all slopes come from batched exact UU-dagger
-    circuit runs (one run unless it would exceed :data:`MAX_SEARCH_BATCH` circuits),
+    circuit runs (one run unless it would exceed :data:`_MAX_SEARCH_BATCH` circuits),
     noiseless or under ``noise``. For each centroid the accuracy of every margin follows
     from one sort-free pass: sample ``i`` is predicted straight exactly for the margins
     ``> |d_i|``.
@@ -175,7 +175,7 @@ def grid_search(
     n, c, m = theta1.size, centroids.size, margins.size
     thetas = np.concatenate([theta1, theta2])
     noise = check_noise(noise)
-    per_run = max(1, MAX_SEARCH_BATCH // max(2 * n, 1))
+    per_run = max(1, _MAX_SEARCH_BATCH // max(2 * n, 1))
     d_rows = []
     for start in range(0, c, per_run):
         cs = centroids[start : start + per_run]
@@ -335,7 +335,7 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         check_backend(self.backend)
         check_noise(self.noise)
         check_noise(self.train_noise, "train_noise")
-        check_choice("angle_map", self.angle_map, ANGLE_MAPS)
+        check_choice("angle_map", self.angle_map, _ANGLE_MAPS)
         if self.slope_scale is not None:
             check_float("slope_scale", self.slope_scale, 0.0, open_lo=True)
         check_seed("seed", self.seed)

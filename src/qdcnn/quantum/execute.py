@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -14,13 +12,12 @@ from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import as_generator, sample_probabilities
 from qdcnn.quantum.simulator import probabilities
 
-Backend = Literal["numpy", "aer"]
-BACKENDS: tuple[str, ...] = ("numpy", "aer")
+_BACKENDS: tuple[str, ...] = ("numpy", "aer")
 
 
 def check_backend(backend: str) -> str:
     """Return ``backend`` if known, else raise :class:`ParameterError`."""
-    if backend not in BACKENDS:
+    if backend not in _BACKENDS:
         raise ParameterError("backend", backend, "'numpy' or 'aer'")
     return backend
 

@@ -30,7 +30,7 @@ from qdcnn.errors import InputError, MissingExtraError, ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 
 #: tolerance on angles when a QASM text is compared with the circuit it came from
-ANGLE_ATOL = 1e-12
+_ANGLE_ATOL = 1e-12
 
 
 def _check_index(circuit: CircuitBatch, index: int) -> int:
@@ -127,7 +127,7 @@ def _instructions(qc: Any) -> list[tuple[str, tuple[int, ...], tuple[int, ...], 
     return out
 
 
-def circuit_differences(expected: Any, actual: Any, atol: float = ANGLE_ATOL) -> list[str]:
+def circuit_differences(expected: Any, actual: Any, atol: float = _ANGLE_ATOL) -> list[str]:
     """Differences between two Qiskit circuits, instruction by instruction ([] when equal).
 
     Compares qubit and bit counts, then each instruction's name, qubit and bit indices

@@ -20,14 +20,14 @@ from qdcnn.quantum.noise import NoiseSpec
 if TYPE_CHECKING:
     from qdcnn.quantum.device import DeviceNoise
 
-ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z", "u")
+_ONE_QUBIT_GATES = ("ry", "rx", "rz", "p", "h", "x", "y", "z", "u")
 #: the one-qubit gates a NoiseSpec channel follows in an Aer noise model (with the native sx)
-NOISY_ONE_QUBIT_GATES: tuple[str, ...] = (*ONE_QUBIT_GATES, "sx")
+_NOISY_ONE_QUBIT_GATES: tuple[str, ...] = (*_ONE_QUBIT_GATES, "sx")
 #: two-qubit gates of the noise model (each followed by the channel on both qubits)
-TWO_QUBIT_GATES = ("cx", "cz")
+_TWO_QUBIT_GATES = ("cx", "cz")
 
 
-def append_gate(qc: Any, name: str, qubits: tuple[int, ...], params: tuple[float, ...]) -> None:
+def _append_gate(qc: Any, name: str, qubits: tuple[int, ...], params: tuple[float, ...]) -> None:
     """Append one qdcnn gate to the Qiskit circuit ``qc``.
 
     ``rot(phi, theta, omega)`` becomes Qiskit's ``u(theta, omega, phi)`` with the global
@@ -55,37 +55,37 @@ def to_qiskit(circuit: CircuitBatch, index: int | None = None) -> Any:
     for i in indices:
         qc = qiskit.QuantumCircuit(circuit.num_qubits, name=f"{circuit.name}_{i}")
         for gate in circuit.gates:
-            append_gate(qc, gate.name, gate.qubits, gate.params(i))
+            _append_gate(qc, gate.name, gate.qubits, gate.params(i))
         out.append(qc)
     return out if index is None else out[0]
 
 
-def aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = NOISY_ONE_QUBIT_GATES) -> Any:
+def _aer_noise_model(noise: NoiseSpec, gate_names: tuple[str, ...] = _NOISY_ONE_QUBIT_GATES) -> Any:
     """A qiskit-aer ``NoiseModel`` equal to ``noise`` as qdcnn applies it.
 
     The channel follows every one-qubit gate in ``gate_names`` (``u`` is qdcnn's
     ``rot``) and, tensored with itself, every ``cx`` and ``cz``; the readout error
     acts on every measured qubit. For a :class:`~qdcnn.quantum.device.DeviceNoise` it is
-    the device's model on its physical qubits (:func:`device_noise_model`).
+    the device's model on its physical qubits (:func:`_device_noise_model`).
     """
     from qdcnn.quantum.device import DeviceNoise
 
     if isinstance(noise, DeviceNoise):
-        return device_noise_model(noise)
+        return _device_noise_model(noise)
     aer_noise = require("qiskit_aer", "Aer noise models").noise
     info = require("qiskit", "Aer noise models").quantum_info
-    model = aer_noise.NoiseModel(basis_gates=[*gate_names, *TWO_QUBIT_GATES])
+    model = aer_noise.NoiseModel(basis_gates=[*gate_names, *_TWO_QUBIT_GATES])
     kraus = noise.kraus()
     if kraus is not None:
         err = aer_noise.QuantumError(info.Kraus(list(kraus)))
         model.add_all_qubit_quantum_error(err, list(gate_names))
-        model.add_all_qubit_quantum_error(err.tensor(err), list(TWO_QUBIT_GATES))
+        model.add_all_qubit_quantum_error(err.tensor(err), list(_TWO_QUBIT_GATES))
     if noise.readout:
         model.add_all_qubit_readout_error(aer_noise.ReadoutError(noise.readout_matrix().T))
     return model
 
 
-def device_noise_model(noise: DeviceNoise) -> Any:
+def _device_noise_model(noise: DeviceNoise) -> Any:
     """The Aer ``NoiseModel`` of a ``DeviceNoise``, on the device's physical qubits.
 
     The gate errors are the ones ``NoiseModel.from_backend`` adds for the native gates
@@ -149,7 +149,7 @@ def run_aer(
     noisy = noise is not None and not noise.is_ideal
     sim = aer.AerSimulator(
         method=method or ("density_matrix" if noisy else "statevector"),
-        noise_model=aer_noise_model(noise) if noisy and noise is not None else None,
+        noise_model=_aer_noise_model(noise) if noisy and noise is not None else None,
     )
     n = circuit.num_qubits
     measured = list(range(n))

@@ -26,7 +26,7 @@ def _cx_permutation(n: int, control: int, target: int) -> NDArray[np.intp]:
     return np.where((idx >> control) & 1, idx ^ (1 << target), idx)
 
 
-def cz_signs(n: int, a: int, b: int) -> NDArray[np.float64]:
+def _cz_signs(n: int, a: int, b: int) -> NDArray[np.float64]:
     """Diagonal of ``CZ(a, b)`` on ``n`` qubits: ``-1`` where both bits are set, else ``1``."""
     idx = np.arange(2**n)
     return np.where((idx >> a) & (idx >> b) & 1, -1.0, 1.0)
@@ -46,7 +46,7 @@ def _apply_1q(state: NDArray[Any], m: NDArray[Any], q: int, n: int) -> NDArray[A
 _FUSABLE = frozenset({"ry", "rx", "rz", "p"})
 
 
-def fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
+def _fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
     """Merge runs of same-axis rotations on one qubit into one gate (exact).
 
     ``RY(a) RY(b) = RY(a + b)``, and likewise for ``RX``, ``RZ`` and ``P``; the
@@ -72,16 +72,16 @@ def fuse_rotations(gates: tuple[Gate, ...]) -> list[Gate]:
 def _evolve(circuit: CircuitBatch, fused: list[Gate] | None = None) -> NDArray[Any]:
     """Final states, in real arithmetic while every gate so far is real (RY, H, X, Z, CX, CZ).
 
-    ``fused`` is ``fuse_rotations(circuit.gates)`` when the caller already has it.
+    ``fused`` is ``_fuse_rotations(circuit.gates)`` when the caller already has it.
     """
     n = circuit.num_qubits
     state: NDArray[Any] = np.zeros((circuit.batch_size, 2**n))
     state[:, 0] = 1.0
-    for g in fuse_rotations(circuit.gates) if fused is None else fused:
+    for g in _fuse_rotations(circuit.gates) if fused is None else fused:
         if g.name == "cx":
             state = state[:, _cx_permutation(n, *g.qubits)]
         elif g.name == "cz":
-            state = state * cz_signs(n, *g.qubits)
+            state = state * _cz_signs(n, *g.qubits)
         else:
             state = _apply_1q(state, g.matrix(), g.qubits[0], n)
     return state
@@ -112,7 +112,7 @@ def _gate_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
         perm = _cx_permutation(n, *g.qubits)
         return np.eye(2**n, dtype=np.complex128)[perm][None]
     if g.name == "cz":
-        return np.diag(cz_signs(n, *g.qubits)).astype(np.complex128)[None]
+        return np.diag(_cz_signs(n, *g.qubits)).astype(np.complex128)[None]
     return embed(g.matrix(), g.qubits[0], n)
 
 
@@ -129,11 +129,11 @@ def unitary(circuit: CircuitBatch) -> NDArray[np.complex128]:
     return u
 
 
-def embed_operator(ops: NDArray[Any], qubits: tuple[int, ...], n: int) -> NDArray[np.complex128]:
+def _embed_operator(ops: NDArray[Any], qubits: tuple[int, ...], n: int) -> NDArray[np.complex128]:
     """Embed ``k``-qubit operators ``(K, 2**k, 2**k)`` on ``qubits`` into ``(K, 2**n, 2**n)``.
 
     ``qubits[0]`` is the least significant bit of the operators' index (Qiskit's
-    convention), so ``embed_operator(cx_matrix, (c, t), n)`` is a CX with control ``c``.
+    convention), so ``_embed_operator(cx_matrix, (c, t), n)`` is a CX with control ``c``.
     """
     if len(qubits) == 1:
         return embed(ops, qubits[0], n)
@@ -163,7 +163,7 @@ def _cached(
     hit = cache.get(key)
     if hit is None:
         if n <= _EMBED_MAX_QUBITS:
-            derived = embed_operator(ops, qubits, n)
+            derived = _embed_operator(ops, qubits, n)
         else:
             # superoperator S[(i, m), (j, l)] = sum_k K_ij conj(K_ml) on the touched qubits
             d = ops.shape[-1]
@@ -209,7 +209,7 @@ _NATIVE_TWO_QUBIT: dict[str, NDArray[np.complex128]] = {
 
 def _density_step_unitary(g: Gate, n: int) -> NDArray[np.complex128]:
     if g.name in _NATIVE_TWO_QUBIT:
-        return embed_operator(_NATIVE_TWO_QUBIT[g.name][None], g.qubits, n)
+        return _embed_operator(_NATIVE_TWO_QUBIT[g.name][None], g.qubits, n)
     return _gate_unitary(g, n)
 
 
@@ -289,7 +289,7 @@ def probabilities(circuit: CircuitBatch, noise: GateNoise | None = None) -> NDAr
     density-matrix simulator (:func:`density_matrix`), then each qubit's readout error.
     """
     if noise is None or noise.is_ideal:
-        fused = fuse_rotations(circuit.gates)
+        fused = _fuse_rotations(circuit.gates)
         single = _single_rotation(circuit, fused)
         if single is not None:
             return single

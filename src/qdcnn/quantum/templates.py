@@ -77,7 +77,7 @@ def head_template(num_qubits: int, num_layers: int, *, reupload: bool = False) -
     return b.build("qdcnn_head_reupload" if reupload else "qdcnn_head")
 
 
-def head_shapes(
+def _head_shapes(
     x: ArrayLike, weights: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``x`` as ``(B, n)`` and ``weights`` as ``(L, n, 3)``, checked against each other."""
@@ -98,7 +98,7 @@ def head_circuit(x: ArrayLike, weights: ArrayLike, *, reupload: bool = False) ->
     :func:`qdcnn.quantum.export.draw_text` and exports with
     :func:`qdcnn.quantum.export.write_qasm3` (``index`` picks the sample).
     """
-    xa, w = head_shapes(x, weights)
+    xa, w = _head_shapes(x, weights)
     template = head_template(xa.shape[1], w.shape[0], reupload=reupload)
     return template.bind(xa, w.ravel())
 
@@ -217,7 +217,6 @@ __all__ = [
     "entangler_ranges",
     "head_circuit",
     "head_readout",
-    "head_shapes",
     "head_template",
     "random_layer_gates",
     "random_layers_template",

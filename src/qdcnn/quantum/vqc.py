@@ -9,7 +9,7 @@ Circuit and simulation. :func:`qdcnn.quantum.circuits.vqc_circuit` builds all sa
 circuits as one batch (for Aer, noise and export). Noise-free NumPy runs split the circuit
 at the feature map: its states follow in closed form (:func:`feature_map_states`, two
 Hadamard layers and diagonal phases per repetition) and the data-free ansatz is one 4x4
-unitary (:func:`ansatz_unitary`), so training computes the feature-map states once and
+unitary (:func:`_ansatz_unitary`), so training computes the feature-map states once and
 every objective evaluation is one ``(N, 4) x (4, 4)`` product; both are tested against
 the gate-by-gate simulator, Aer and qiskit-machine-learning.
 
@@ -111,22 +111,22 @@ from qdcnn.quantum.noise import GateNoise, NoiseSpec
 from qdcnn.quantum.sampling import sample_probabilities
 from qdcnn.quantum.simulator import unitary
 
-INTERPRETS: dict[str, tuple[int, int, int, int]] = {
+_INTERPRETS: dict[str, tuple[int, int, int, int]] = {
     "mod3": (0, 1, 2, 0),
     "min2": (0, 1, 2, 2),
 }
-LOSSES: tuple[str, ...] = ("mse", "cross_entropy")
-SCALINGS: tuple[str, ...] = ("minmax", "arctan", "none")
-ENGINES: tuple[str, ...] = ("qdcnn", "qiskit-ml")
+_LOSSES: tuple[str, ...] = ("mse", "cross_entropy")
+_SCALINGS: tuple[str, ...] = ("minmax", "arctan", "none")
+_ENGINES: tuple[str, ...] = ("qdcnn", "qiskit-ml")
 _DEFAULTS = VQCConfig()
 
 
-def interpret_table(interpret: str | Sequence[int]) -> tuple[int, ...]:
+def _interpret_table(interpret: str | Sequence[int]) -> tuple[int, ...]:
     """The basis-index -> class table of ``interpret`` (a name or four class indices)."""
     if isinstance(interpret, str):
-        if interpret not in INTERPRETS:
+        if interpret not in _INTERPRETS:
             raise ParameterError("interpret", interpret, "'min2', 'mod3' or 4 class indices")
-        return INTERPRETS[interpret]
+        return _INTERPRETS[interpret]
     table = tuple(interpret)
     ok = len(table) == 4 and all(
         isinstance(c, int | np.integer) and not isinstance(c, bool) for c in table
@@ -140,14 +140,14 @@ def interpret_table(interpret: str | Sequence[int]) -> tuple[int, ...]:
 
 def interpret_matrix(interpret: str | Sequence[int]) -> NDArray[np.float64]:
     """``M[k, c] = 1`` when basis state ``k`` counts for class ``c``; shape ``(4, 3)``."""
-    return np.eye(N_CLASSES)[list(interpret_table(interpret))]
+    return np.eye(N_CLASSES)[list(_interpret_table(interpret))]
 
 
 class Interpret:
     """``interpret`` as the callable qiskit-machine-learning expects (basis index -> class)."""
 
     def __init__(self, interpret: str | Sequence[int]) -> None:
-        self.table = interpret_table(interpret)
+        self.table = _interpret_table(interpret)
 
     def __call__(self, index: int) -> int:
         return self.table[int(index)]
@@ -231,7 +231,7 @@ def feature_map_states(angles: ArrayLike, reps: int = 2) -> NDArray[np.complex12
     return state
 
 
-def ansatz_unitary(weights: ArrayLike, reps: int = 1) -> NDArray[np.complex128]:
+def _ansatz_unitary(weights: ArrayLike, reps: int = 1) -> NDArray[np.complex128]:
     """The unitary of ``real_amplitudes(2, reps)``: ``(1, 4, 4)``, or ``(N, 4, 4)`` for
     per-sample weights of shape ``(N, 2 (reps + 1))``."""
     w = np.asarray(weights, dtype=np.float64)
@@ -257,7 +257,7 @@ def ansatz_probabilities(
     states: NDArray[np.complex128], weights: ArrayLike, reps: int = 1
 ) -> NDArray[np.float64]:
     """Basis probabilities ``(N, 4)`` of ``states`` (feature-map outputs) after the ansatz."""
-    u = ansatz_unitary(weights, reps)
+    u = _ansatz_unitary(weights, reps)
     final = states @ u[0].T if u.shape[0] == 1 else np.einsum("bij,bj->bi", u, states)
     probs = final.real**2 + final.imag**2
     out: NDArray[np.float64] = probs / probs.sum(axis=1, keepdims=True)
@@ -451,10 +451,10 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         check_int("feature_map_reps", self.feature_map_reps, 1)
         check_int("ansatz_reps", self.ansatz_reps, 0)
         check_int("maxiter", self.maxiter, 1)
-        if self.loss not in LOSSES:
+        if self.loss not in _LOSSES:
             raise ParameterError("loss", self.loss, "'mse' or 'cross_entropy'")
-        interpret_table(self.interpret)
-        if self.scaling not in SCALINGS:
+        _interpret_table(self.interpret)
+        if self.scaling not in _SCALINGS:
             raise ParameterError("scaling", self.scaling, "'minmax', 'arctan' or 'none'")
         check_optional_shots(self.shots)
         check_backend(self.backend)
@@ -463,7 +463,7 @@ class VQCClassifier(ClassifierMixin, BaseEstimator):
         check_seed("seed", self.seed)
         check_int("restarts", self.restarts, 1)
         check_float("angle_span", self.angle_span, 0.0, 1.0, open_lo=True)
-        if self.engine not in ENGINES:
+        if self.engine not in _ENGINES:
             raise ParameterError("engine", self.engine, "'qdcnn' or 'qiskit-ml'")
         if self.engine == "qiskit-ml" and self.train_noise is not None:
             raise ParameterError("train_noise", self.train_noise, "None with engine='qiskit-ml'")

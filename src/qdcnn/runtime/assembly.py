@@ -30,7 +30,7 @@ from qdcnn.runtime.manifest import (
     chunk_files,
 )
 
-TIMINGS_HEADER = "frame,process_ms,overlay_ms\n"
+_TIMINGS_HEADER = "frame,process_ms,overlay_ms\n"
 
 
 class ChunkVanishedError(Exception):
@@ -99,7 +99,7 @@ def assemble(
     if parts.segments:
         fps, segments = chunks[0].overlay_fps, parts.segments
         outputs[f"{name}/{OVERLAY}"] = folder.write_file(
-            f"{name}/{OVERLAY}", lambda path: join_segments(segments, path, fps)
+            f"{name}/{OVERLAY}", lambda path: _join_segments(segments, path, fps)
         )
     return Assembled(outputs, dict(parts.directions), parts.bad)
 
@@ -109,7 +109,7 @@ def _read_chunks(
 ) -> _Parts:
     header_buf = io.StringIO()
     csv.writer(header_buf, lineterminator="\n").writerow(header)
-    parts = _Parts([header_buf.getvalue()], [TIMINGS_HEADER])
+    parts = _Parts([header_buf.getvalue()], [_TIMINGS_HEADER])
     for task in chunks:
         entry = ledger.chunk_entry(folder, task.chunk)
         rows, timings, video = chunk_files(ledger.name, task.chunk)
@@ -129,7 +129,7 @@ def _read_chunks(
     return parts
 
 
-def join_segments(segments: list[tuple[bytes, float]], path: Path, fps: float) -> None:
+def _join_segments(segments: list[tuple[bytes, float]], path: Path, fps: float) -> None:
     """Write the overlay segments as one mp4 at ``path``: remuxed with PyAV, else decoded
     and encoded again with OpenCV."""
     from qdcnn._optional import has_module

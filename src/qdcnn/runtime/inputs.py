@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn.data.images import list_images, read_image
+from qdcnn.data.images import list_named_images, read_image, require_file
 from qdcnn.data.video import VideoReader, is_video_file
 from qdcnn.errors import InputError, ParameterError, QdcnnError
 from qdcnn.outputs import file_identity
@@ -113,14 +113,10 @@ def resolve_inputs(items: Sequence[Any]) -> tuple[list[Input], dict[str, Any]]:
 
 def _path_input(path: Path, unique: Callable[[str], str]) -> Input:
     if path.is_dir():
-        files = tuple(list_images([path]).images)
-        if not files:
-            raise InputError(path, "no image files in this folder")
+        files = tuple(list_named_images([path]).images)
         return FolderInput(unique(path.resolve().name), path, files)
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if is_video_file(path):
-        return VideoInput(unique(path.stem), path)
+    if is_video_file(path) or not path.exists():
+        return VideoInput(unique(path.stem), require_file(path, "file"))
     raise InputError(path, f"not a video file or folder (suffix {path.suffix!r})")
 
 

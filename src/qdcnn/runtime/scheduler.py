@@ -50,7 +50,7 @@ R = TypeVar("R")
 
 _LOCAL = re.compile(r"^local(?::(\d+))?$")
 _REMOTE = re.compile(r"^(tcp|tls|ucx|ws|wss)://[^\s/:]+(:\d+)?/?$")
-SCHEDULER_HELP = "none, local, local:N (N worker processes) or tcp://HOST:PORT"
+_SCHEDULER_HELP = "none, local, local:N (N worker processes) or tcp://HOST:PORT"
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def parse_scheduler(spec: str | None) -> tuple[str, int | str | None]:
     if spec is None or spec == "none":
         return "in-process", None
     if not isinstance(spec, str):
-        raise ParameterError("scheduler", spec, SCHEDULER_HELP)
+        raise ParameterError("scheduler", spec, _SCHEDULER_HELP)
     m = _LOCAL.match(spec)
     if m:
         n = int(m.group(1)) if m.group(1) else (os.cpu_count() or 1)
@@ -149,7 +149,7 @@ def parse_scheduler(spec: str | None) -> tuple[str, int | str | None]:
         return "local", n
     if _REMOTE.match(spec):
         return "remote", spec
-    raise ParameterError("scheduler", spec, SCHEDULER_HELP)
+    raise ParameterError("scheduler", spec, _SCHEDULER_HELP)
 
 
 def _limit_threads() -> None:

@@ -29,11 +29,19 @@ A group whose endpoints all lie on one row has no such line (missing, NaN).
 The left line is the group whose segment midpoints have the smaller mean x; a single
 group goes to the side of the midline its mean x is on.
 
-Missing lines
--------------
-Every frame gets a status: "ok" (two lines), "one-line" or "no-lines"; missing slopes
-are NaN. k-means and spectral clustering always return two clusters, so a frame showing
-one road edge (e.g. the two borders of one kerb) would give two slopes of the same line:
+Missing lines, and pairs that cannot be a road
+-----------------------------------------------
+Every frame gets a status: "ok" (two lines that can border a road), "one-line" or
+"no-lines"; missing slopes are NaN. Two fitted lines that cannot be the borders of a road
+seen from the car get "crossed" (they meet between the top and the bottom row of the
+region of interest) or "wrong-side" (the left line lies right of the right one over the
+whole region, or leans right, ``a > 0``, while the right one leans left, ``a < 0``: such
+lines converge downwards, a road's converge upwards). Their slopes are kept (the
+decision is made as for any two lines) and the status flags the frame
+(:func:`pair_status`).
+
+k-means and spectral clustering always return two clusters, so a frame showing one road
+edge (e.g. the two borders of one kerb) would give two slopes of the same line:
 when one line fits all the segments within ``merge_tolerance`` (3 % of the width by
 default) the frame counts as "one-line". ``merge_tolerance=None`` turns this off.
 
@@ -102,7 +110,7 @@ FAR_ROW, NEAR_ROW = 0.5, 0.9
 #: "near-vanishing-point-offset" uses the segments whose lower end is at or below this row
 NEAR_PART = 0.7
 _SLOPE_NAMES: tuple[str, str] = ("slope_left", "slope_right")
-Status = Literal["ok", "one-line", "no-lines"]
+Status = Literal["ok", "one-line", "no-lines", "crossed", "wrong-side"]
 _SPECTRAL_NEIGHBOURS = 10
 #: segments fitting one line within this fraction of the width are one line (group_segments)
 _MERGE_TOLERANCE = 0.03
@@ -126,8 +134,9 @@ class LaneFeatures:
     features : (2 + k,) float64 array
         ``[slope_left, slope_right]`` (dx/dy, see the module docstring), then any extra
         features in the order asked for; NaN where a line is missing.
-    status : {"ok", "one-line", "no-lines"}
-        Whether both lines, one line or none could be fitted.
+    status : {"ok", "one-line", "no-lines", "crossed", "wrong-side"}
+        Whether both lines, one line or none could be fitted, and whether two lines can
+        border a road (:func:`pair_status`).
     n_segments : int
         Number of segments given.
     lines : list of two ((a, b) or None)
@@ -146,6 +155,10 @@ class LaneFeatures:
         image-split overlay; None unless both lines exist.
     segments : (n_segments, 4) array or None
         The segments that were grouped (``labels`` gives each one's group).
+    roi_rows : (float, float) or None
+        Top and bottom row of the region of interest, relative to the height (0: the top
+        row, 1: the bottom one), where two lines must not cross; ``None``: the rows the
+        segments span.
     """
 
     features: NDArray[np.float64]
@@ -158,6 +171,7 @@ class LaneFeatures:
     shape: tuple[int, int] = (0, 0)
     middle_line: tuple[float, float] | None = field(default=None)
     segments: NDArray[np.float64] | None = field(default=None, repr=False)
+    roi_rows: tuple[float, float] | None = None
 
 
 def feature_names(extra_features: Sequence[str] = ()) -> tuple[str, ...]:
@@ -230,6 +244,49 @@ def fit_line(segments: NDArray[np.float64]) -> tuple[float, float] | None:
     return a, xm - a * ym
 
 
+def pair_status(
+    lines: Sequence[tuple[float, float] | None], rows: tuple[float, float]
+) -> Status:
+    """The status of a frame's two fitted lines (left first) over the rows ``rows`` (pixels).
+
+    "no-lines" or "one-line" when lines are missing; for two lines "crossed" when they meet
+    between the two rows (the left line is left of the right one at one row and not at
+    the other), "wrong-side" when the left line is not left of the right one at either
+    row, or when the left line leans right (``a > 0``) and the right one leans left
+    (``a < 0``); else "ok".
+
+    Examples
+    --------
+    >>> pair_status([(-0.667, 140.0), (0.667, 180.0)], (60.0, 159.0))
+    'ok'
+    >>> pair_status([(-3.93, 500.0), (4.22, -300.0)], (60.0, 159.0))
+    'crossed'
+    >>> pair_status([(0.3, 40.0), (-0.3, 280.0)], (60.0, 159.0))
+    'wrong-side'
+    """
+    left, right = lines[0], lines[1]
+    if left is None or right is None:
+        return "no-lines" if left is None and right is None else "one-line"
+    gaps = [(right[0] - left[0]) * y + right[1] - left[1] for y in rows]
+    if (gaps[0] > 0) != (gaps[1] > 0):
+        return "crossed"
+    if gaps[0] <= 0 or (left[0] > 0 and right[0] < 0):
+        return "wrong-side"
+    return "ok"
+
+
+def check_rows(
+    roi_rows: tuple[float, float] | None, segments: NDArray[np.float64] | None, height: int
+) -> tuple[float, float]:
+    """The pixel rows :func:`pair_status` checks: the ROI's, or the rows the segments span."""
+    if roi_rows is not None:
+        return roi_rows[0] * (height - 1), roi_rows[1] * (height - 1)
+    if segments is None or len(segments) == 0:
+        return 0.0, float(height - 1)
+    ys = segments[:, [1, 3]]
+    return float(ys.min()), float(ys.max())
+
+
 def segment_descriptors(segments: NDArray[np.float64], width: int) -> NDArray[np.float64]:
     """Clustering descriptors ``[xm / W, cos(2 theta) / 2, sin(2 theta) / 2]`` per segment.
 
@@ -252,6 +309,7 @@ def group_segments(
     extra_features: Sequence[str] = (),
     merge_tolerance: float | None = _MERGE_TOLERANCE,
     inner_lines: bool = False,
+    roi_rows: tuple[float, float] | None = None,
 ) -> LaneFeatures:
     """Split segments into a left and a right group, fit a line to each, return the slopes.
 
@@ -279,12 +337,18 @@ def group_segments(
         Keep only each group's innermost line (not the paper's; :func:`inner_line_labels`):
         the segments of other lines on that side (the far edge of the other lane, a kerb,
         a parked car) get label :data:`LEFT_OUT` and no part in the fit.
+    roi_rows : (float, float) or None
+        Top and bottom row of the region of interest relative to the height; two lines
+        that cross between them are "crossed" (:func:`pair_status`). ``None``: the rows
+        the segments span (a road's lines meet at the vanishing point, above the region
+        and above the segments, but often inside the frame).
 
     Returns
     -------
     LaneFeatures
         Status "no-lines" when no line can be fitted, "one-line" when only one can
-        (e.g. one segment, all segments on one side for image-split, or merged groups).
+        (e.g. one segment, all segments on one side for image-split, or merged groups),
+        "crossed" or "wrong-side" when two lines cannot border a road.
 
     Examples
     --------
@@ -303,12 +367,10 @@ def group_segments(
     lines: list[tuple[float, float] | None] = [fit_line(seg[labels == g]) for g in (0, 1)]
     if merge_tolerance is not None and lines[0] is not None and lines[1] is not None:
         labels, lines = _merge_one_line(seg, labels, lines, merge_tolerance * w, w)
-    n_lines = sum(line is not None for line in lines)
-    status: Status = ("no-lines", "one-line", "ok")[n_lines]
     values = feature_values(lines, extra_features, h, w, seg, labels)
     return LaneFeatures(
         features=values,
-        status=status,
+        status=pair_status(lines, check_rows(roi_rows, seg, h)),
         n_segments=len(seg),
         lines=lines,
         labels=labels.astype(np.int64),
@@ -317,6 +379,7 @@ def group_segments(
         shape=(h, w),
         middle_line=_middle_line(lines),
         segments=seg,
+        roi_rows=roi_rows,
     )
 
 

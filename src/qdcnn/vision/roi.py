@@ -32,3 +32,15 @@ def polygon_mask(
     mask = np.zeros(shape[:2], dtype=np.uint8)
     cv2.fillPoly(mask, [polygon_pixels(shape, polygon)], 1)
     return mask.astype(bool)
+
+
+def roi_rows(polygon: Sequence[tuple[float, float]]) -> tuple[float, float]:
+    """Top and bottom row of a relative polygon, as fractions of the height.
+
+    Examples
+    --------
+    >>> roi_rows([(0.0, 1.0), (0.3, 0.45), (0.7, 0.45), (1.0, 1.0)])
+    (0.45, 1.0)
+    """
+    ys = [float(y) for _, y in polygon]
+    return min(ys), max(ys)

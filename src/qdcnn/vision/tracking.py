@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.config import GroupingConfig
-from qdcnn.vision.grouping import LaneFeatures, Status, feature_values
+from qdcnn.vision.grouping import LaneFeatures, check_rows, feature_values, pair_status
 
 #: rows (relative to the height) at which a line's x is tracked
 _TRACK_ROWS = (0.5, 0.95)
@@ -187,8 +187,7 @@ def _with_lines(
 ) -> LaneFeatures:
     """``lanes`` with tracked lines: status, middle line and features recomputed."""
     h, w = lanes.shape
-    n_lines = sum(line is not None for line in lines)
-    status: Status = ("no-lines", "one-line", "ok")[n_lines]
+    status = pair_status(lines, check_rows(lanes.roi_rows, lanes.segments, h))
     left, right = lines
     middle = None
     if left is not None and right is not None:

@@ -101,7 +101,9 @@ def _lane_result(
         lanes.y,
         config=ctx.configs[mode],
         frames_without_lines=lanes.table.frames_without_lines(method.grouping),
-        **PROTOCOL,
+        folds=PROTOCOL["folds"],
+        gap=PROTOCOL["gap"],
+        inner_folds=PROTOCOL["inner_folds"],
     )
     res.extra["pipeline_ms_per_frame"] = 1e3 * lanes.table.seconds_per_frame
     return res.to_dict()

@@ -191,7 +191,8 @@ def _read(frames: Any, i: int | None, section: Section) -> NDArray[np.uint8] | N
 
 
 def _grouping_frame(ctx: RunContext, entry: DatasetEntry) -> int:
-    """A frame where every grouping finds two lines, in the longest bend if possible."""
+    """A frame where every grouping finds two lines that can border a road (status "ok"),
+    in the longest bend if possible."""
     lanes = ctx.lane_data(entry, "paper")
     ok = np.ones(len(lanes.frames), bool)
     for status in lanes.table.status.values():
@@ -251,9 +252,10 @@ def groupings_section(ctx: RunContext, section: Section) -> None:
         return
     section.text(
         "The paper's pipeline on one frame per dataset (a frame where all three groupings find "
-        "two lines, in the longest bend when there is one): ROI (white), Hough segments coloured "
-        "by group (orange left, blue right), fitted lines (yellow, cyan); image-split also draws "
-        "the split (dashed green) and the centre line (green). Order as in the paper: "
+        "two lines that can border a road, in the longest bend when there is one; a status "
+        "'crossed' or 'wrong-side' flags two lines that cannot): ROI (white), Hough segments "
+        "coloured by group (orange left, blue right), fitted lines (yellow, cyan); image-split "
+        "also draws the split (dashed green) and the centre line (green). Order as in the paper: "
         "(a) k-means, (b) image-split, (c) spectral."
     )
     section.figure(

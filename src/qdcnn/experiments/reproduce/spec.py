@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from qdcnn._validation import check_int, check_seed
-from qdcnn.data.frames import parse_spec
+from qdcnn.data.frames import load_frameset, parse_spec
+from qdcnn.data.images import require_file_or_folder
+from qdcnn.data.shadow_set import require_shadow_set
 from qdcnn.errors import ParameterError
 from qdcnn.experiments.noise import PAPER_STRENGTHS
 from qdcnn.experiments.reproduce.paper_values import DATASET_LABELS, DATASET_TITLES
@@ -275,6 +277,21 @@ class ReproduceSpec:
             check_int("synthetic_frames", self.synthetic_frames, 10, 100_000)
         if self.force and self.resume:
             raise ParameterError("force/resume", "both", "at most one of --force and --resume")
+
+    def check_paths(self) -> None:
+        """Raise :class:`~qdcnn.errors.InputError` for a recording that does not load or a
+        shadow set that is not there, before any work (the command line's check; without it
+        a recording that fails to load is reported in each section it belongs to).
+
+        Recordings are read as far as their label tables (images are read lazily later).
+        """
+        for entry in self.data:
+            kind, value = parse_spec(entry.spec)
+            if kind != "synthetic":
+                require_file_or_folder(value, f"{kind} recording")
+                load_frameset(entry.spec)
+        if self.shadow_set is not None:
+            require_shadow_set(Path(self.shadow_set))
 
     @property
     def profile(self) -> Profile:

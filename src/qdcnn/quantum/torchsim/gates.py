@@ -20,7 +20,7 @@ import torch  # noqa: E402
 
 from qdcnn.quantum.torchsim._constants import cached_constant  # noqa: E402
 
-REAL_GATES = frozenset({"ry", "h", "x", "z"})
+_REAL_GATES = frozenset({"ry", "h", "x", "z"})
 
 # (phi, theta, omega) -> ((phi + omega) / 2, theta / 2, (phi - omega) / 2)
 _ROT_HALVES = ((0.5, 0.0, 0.5), (0.0, 0.5, 0.0), (0.5, 0.0, -0.5))
@@ -121,5 +121,5 @@ def gate_matrices(name: str, angles: torch.Tensor | None, like: torch.Tensor) ->
         assert angles is not None
         return PARAMETRIC[name](angles)
     m = np_gates.CONSTANT[name]
-    dtype = like.dtype if name in REAL_GATES else complex_dtype(like.dtype)
+    dtype = like.dtype if name in _REAL_GATES else complex_dtype(like.dtype)
     return torch.as_tensor(m, dtype=dtype, device=like.device)[None]

@@ -32,7 +32,7 @@ import torch  # noqa: E402
 
 from qdcnn.quantum.torchsim._constants import cached_constant  # noqa: E402
 
-PAULIS = np.stack([np_gates.I2, np_gates.X, np_gates.Y, np_gates.Z]).astype(np.complex128)
+_PAULIS = np.stack([np_gates.I2, np_gates.X, np_gates.Y, np_gates.Z]).astype(np.complex128)
 #: Bloch vector of |0><0|: c = (Tr rho, <X>, <Y>, <Z>) = (1, 0, 0, 1)
 ZERO_STATE = (1.0, 0.0, 0.0, 1.0)
 
@@ -40,11 +40,11 @@ ZERO_STATE = (1.0, 0.0, 0.0, 1.0)
 # ---- NumPy, at compile time ------------------------------------------------------------
 
 
-def pauli_strings(m: int) -> NDArray[np.complex128]:
+def _pauli_strings(m: int) -> NDArray[np.complex128]:
     """``(4**m, 2**m, 2**m)``: string ``a`` is ``sigma_{a_{m-1}} (x) ... (x) sigma_{a_0}``."""
     out = np.ones((1, 1, 1), dtype=np.complex128)
     for _ in range(m):
-        out = np.einsum("aij,bkl->bakilj", out, PAULIS).reshape(
+        out = np.einsum("aij,bkl->bakilj", out, _PAULIS).reshape(
             4 * out.shape[0], 2 * out.shape[1], 2 * out.shape[2]
         )
     return out
@@ -58,7 +58,7 @@ def kraus_ptm(kraus: NDArray[np.complex128]) -> NDArray[np.float64]:
     """
     d = kraus.shape[-1]
     m = int(np.log2(d))
-    sigma = pauli_strings(m)
+    sigma = _pauli_strings(m)
     mapped = np.einsum("kij,bjl,kml->bim", kraus, sigma, kraus.conj())
     return np.einsum("aij,bji->ab", sigma, mapped).real / d
 
@@ -98,14 +98,14 @@ def then(
 
 
 @lru_cache(maxsize=16)
-def z_strings(n: int) -> NDArray[np.intp]:
+def _z_strings(n: int) -> NDArray[np.intp]:
     """Indices of the ``2**n`` strings made of ``I`` and ``Z``, by their ``Z`` bitmask."""
     z = np.arange(2**n)
     return sum(((z >> q) & 1) * 3 << (2 * q) for q in range(n))  # type: ignore[return-value]
 
 
 @lru_cache(maxsize=16)
-def walsh(n: int) -> NDArray[np.float64]:
+def _walsh(n: int) -> NDArray[np.float64]:
     """``W[s, z] = (-1)**popcount(s & z) / 2**n``: probabilities from ``Z``-string coefficients."""
     s = np.arange(2**n)
     parity = np.zeros((2**n, 2**n), dtype=np.int64)
@@ -121,8 +121,8 @@ def walsh(n: int) -> NDArray[np.float64]:
 @cached_constant(32)
 def _basis_change(dtype: torch.dtype, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
     """``T`` (row-major ``vec(rho)`` -> ``c``) and its inverse, for one qubit."""
-    t = np.stack([p.T.ravel() for p in PAULIS])  # T[a, 2i + j] = sigma_a[j, i]
-    t_inv = np.stack([p.ravel() for p in PAULIS], axis=1) / 2  # [2i + j, a] = sigma_a[i, j] / 2
+    t = np.stack([p.T.ravel() for p in _PAULIS])  # T[a, 2i + j] = sigma_a[j, i]
+    t_inv = np.stack([p.ravel() for p in _PAULIS], axis=1) / 2  # [2i + j, a] = sigma_a[i, j] / 2
     return (
         torch.as_tensor(t, dtype=dtype, device=device),
         torch.as_tensor(t_inv, dtype=dtype, device=device),
@@ -175,8 +175,8 @@ def product(bloch: list[torch.Tensor]) -> torch.Tensor:
 
 def probabilities(c: torch.Tensor, n: int) -> torch.Tensor:
     """Outcome probabilities ``(B, 2**n)`` (qubit 0 = LSB) from coefficients ``(4**n, B)``."""
-    z = torch.as_tensor(z_strings(n), device=c.device)
-    w = torch.as_tensor(walsh(n), dtype=c.dtype, device=c.device)
+    z = torch.as_tensor(_z_strings(n), device=c.device)
+    w = torch.as_tensor(_walsh(n), dtype=c.dtype, device=c.device)
     return (w @ c.index_select(0, z)).T
 
 

@@ -59,7 +59,7 @@ def readout_confusions(
     return None if matrices is None else [np.asarray(m, dtype=np.float64) for m in matrices]
 
 
-def check_template_noise(noise: GateNoise | None) -> None:
+def _check_template_noise(noise: GateNoise | None) -> None:
     """Refuse noise that rewrites circuits into a device's native gates.
 
     Device noise (:class:`qdcnn.quantum.device.DeviceNoise`) prepares each bound circuit
@@ -177,7 +177,7 @@ def _block(gates: Sequence[int], qubit_of: Sequence[int]) -> Block:
 
 def compile_template(template: CircuitTemplate, noise: GateNoise | None = None) -> Program:
     """Group ``template``'s gates into steps for ``noise`` (``None``: noise-free)."""
-    check_template_noise(noise)
+    _check_template_noise(noise)
     n = template.num_qubits
     if not 1 <= n <= MAX_QUBITS:
         raise ParameterError("num_qubits", n, f"1 to {MAX_QUBITS} qubits for the PyTorch simulator")

@@ -42,7 +42,7 @@ import torch  # noqa: E402
 from qdcnn.quantum.torchsim._constants import cached_constant, make_constant  # noqa: E402
 
 #: Largest register whose batch-free gate runs are multiplied into one unitary.
-FUSE_UNITARY_MAX_QUBITS = 6
+_FUSE_UNITARY_MAX_QUBITS = 6
 
 
 @dataclass(frozen=True)
@@ -289,7 +289,7 @@ class TorchCircuit:
                     continue
                 assert psi is not None
                 fused = self._fuse(bp, mats, columns=False)
-                if not bp.per_sample and n <= FUSE_UNITARY_MAX_QUBITS:
+                if not bp.per_sample and n <= _FUSE_UNITARY_MAX_QUBITS:
                     u = _kron_unitary(fused[0], bp.qubits, n)
                     pending = u if pending is None else _matmul(u, pending)
                     continue
