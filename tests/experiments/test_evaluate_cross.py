@@ -183,3 +183,12 @@ def test_a_killed_evaluation_resumes_to_the_same_result(tmp_path: Path) -> None:
     # a second seed reruns only the new seed's folds
     _evaluate_json(resumed, "--seeds", "2")
     assert len(list(resumed.glob("evaluate/unit-*.json"))) == 6
+
+
+def test_a_percentile_threshold_comes_from_the_training_recordings_only() -> None:
+    train, test = f"{TRACK2}@threshold=p33", f"{TRACK1}@threshold=p33"
+    result = run_evaluation(EvaluationSpec("", "kmeans-uu", train=(train,), test=(test,)))
+    trained, tested = result.labels["synthetic-track2"], result.labels["synthetic-track1"]
+    assert trained["label_threshold"] == tested["label_threshold"]  # both in norm units
+    assert "p33 of the training frames" in tested["description"]
+    assert trained["class_balance"]["straight"] == pytest.approx(0.33 * 150, abs=3)

@@ -82,6 +82,7 @@ def load_lane_data(
     use_cache: bool = True,
     on_frame: Callable[[int], None] | None = None,
     check_labels: bool = True,
+    train: Sequence[FrameSet] | None = None,
 ) -> LaneData:
     """Frames, labels and lane features of ``data`` (a dataset spec or a loaded FrameSet).
 
@@ -91,6 +92,7 @@ def load_lane_data(
         The dataset cannot be loaded, or its readable frames' labels hold fewer than two
         classes (a constant guess would score 1.0); ``check_labels=False`` skips that
         check (a test recording of one class is still scored, balanced accuracy undefined).
+        ``train``: the training recordings a percentile label threshold is taken from.
     """
     cfg = config or PipelineConfig()
     frames = (
@@ -98,7 +100,7 @@ def load_lane_data(
         if isinstance(data, FrameSet)
         else load_frameset(data, seed=seed, steering_unit=cfg.labels.steering_unit)
     )
-    labels = frames.labels(cfg.labels)
+    labels = frames.labels(cfg.labels, train=train)
     table = compute_features(
         frames, cfg, tuple(sorted(set(groupings))), use_cache=use_cache, on_frame=on_frame
     )

@@ -10,6 +10,7 @@ the readable frames; frame methods (CNNs) read the frames themselves.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -524,9 +525,17 @@ def _evaluate_all(
             method_done()
 
 
-def label_summary(frames: FrameSet, config: PipelineConfig, report: Reporter) -> dict[str, Any]:
-    """How the labels were made (unit, threshold, classes); a note when the unit is guessed."""
-    info = frames.label_info(config.labels)
+def label_summary(
+    frames: FrameSet,
+    config: PipelineConfig,
+    report: Reporter,
+    train: Sequence[FrameSet] | None = None,
+) -> dict[str, Any]:
+    """How the labels were made (unit, threshold, classes); a note when the unit is guessed.
+
+    ``train``: the training recordings a percentile threshold (``@threshold=pNN``) is
+    taken from."""
+    info = frames.label_info(config.labels, train=train)
     if info.unit.assumed:
         report.note(f"{frames.name}: steering unit {info.unit.describe()}")
     return {**info.to_dict(), "class_balance": info.counts(), "description": info.describe()}

@@ -6,8 +6,11 @@ given, their hyperparameters chosen by the inner contiguous search (with the gap
 those frames; frame methods (CNNs, hybrids) on the stacked frames, validating on
 training frames only. Every test recording is then scored on its own, with the
 metrics and block-bootstrap intervals of :func:`qdcnn.direction.protocol.score_runs`.
-Each recording is labelled with its own steering unit (``FrameSet.label_info``).
-``leave_one_out`` makes each recording the test set in turn.
+Each recording is labelled with its own steering unit and threshold
+(``FrameSet.label_info``); a percentile threshold (``@threshold=pNN`` or
+``LabelConfig.threshold_quantile``) is taken from the split's TRAINING recordings only and
+applied to its test recordings. ``leave_one_out`` makes each recording the test set in
+turn.
 
 A test recording that shares frames with the training set is refused before anything
 trains; one whose labels are all one class is scored with balanced accuracy undefined
@@ -26,7 +29,7 @@ from numpy.typing import NDArray
 from qdcnn.batch import Failure
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
 from qdcnn.data.labels import check_labels_usable
-from qdcnn.direction.lane_data import load_lane_data
+from qdcnn.direction.features import FeatureTable, compute_features
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions
 from qdcnn.direction.protocol import MethodResult, fit_with_search, score_runs
 from qdcnn.errors import InputError
@@ -105,14 +108,19 @@ def run_cross_evaluation(
     )
     for s in specs:
         _add_failures(result, [Failure(p.source, str(p)) for p in frames[s].problems], report)
-    result.labels = {frames[s].name: label_summary(frames[s], cfg, report) for s in specs}
+    for train, test in splits:
+        train_sets = [frames[s] for s in train]
+        for s in (*train, *test):
+            if frames[s].name not in result.labels:
+                summary = label_summary(frames[s], cfg, report, train=train_sets)
+                result.labels[frames[s].name] = summary
     inputs = _Inputs(spec, frames, methods, result, report)
     for m in methods:
         for train, test in splits:
             for res in cross_evaluate(
                 m,
-                [inputs.recording(m, s) for s in train],
-                [inputs.recording(m, t) for t in test],
+                [inputs.recording(m, s, train) for s in train],
+                [inputs.recording(m, t, train) for t in test],
                 spec,
             ):
                 result.results.append(res)
@@ -134,37 +142,38 @@ class _Inputs:
     ) -> None:
         self.spec, self.frames, self.result, self.report = spec, frames, result, report
         self.groupings = sorted({m.grouping for m in methods if m.grouping is not None})
-        self._lanes: dict[str, Any] = {}
+        self._lanes: dict[str, FeatureTable] = {}
         self._images: dict[str, tuple[NDArray[np.uint8], NDArray[np.bool_]]] = {}
 
-    def recording(self, m: DirectionMethod, spec: str) -> Recording:
+    def recording(self, m: DirectionMethod, spec: str, train: tuple[str, ...]) -> Recording:
+        """``spec``'s inputs for ``m``, labelled as the split trained on ``train`` says."""
         fs = self.frames[spec]
+        labels = fs.labels(self.spec.config.labels, train=[self.frames[s] for s in train])
         if m.inputs == "lanes":
             assert m.grouping is not None
-            lanes = self._lane_data(spec)
+            table = self._lane_features(spec)
+            keep = table.readable
             return Recording(
                 fs.name,
-                lanes.features(m.grouping),
-                lanes.y,
-                lanes.table.frames_without_lines(m.grouping),
+                table.features[m.grouping][keep],
+                labels[keep],
+                table.frames_without_lines(m.grouping),
             )
         images, readable = self._stacked(spec)
-        labels = fs.labels(self.spec.config.labels)
         return Recording(fs.name, images[readable], labels[readable])
 
-    def _lane_data(self, spec: str) -> Any:
+    def _lane_features(self, spec: str) -> FeatureTable:
         if spec not in self._lanes:
             fs = self.frames[spec]
             with self.report.progress(len(fs), f"lane features ({fs.name})") as advance:
-                table = load_lane_data(
+                table = compute_features(
                     fs,
                     self.spec.config,
                     self.groupings,
                     use_cache=self.spec.use_cache,
                     on_frame=advance,
-                    check_labels=False,
                 )
-            _add_failures(self.result, table.table.failures, self.report)
+            _add_failures(self.result, table.failures, self.report)
             self._lanes[spec] = table
         return self._lanes[spec]
 

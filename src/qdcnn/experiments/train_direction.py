@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from qdcnn._validation import check_int
 from qdcnn.batch import Failure
@@ -14,6 +14,9 @@ from qdcnn.direction.methods import TrainingOptions, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.reporting import Reporter
+
+if TYPE_CHECKING:
+    from qdcnn.data.frames import FrameSet
 
 __all__ = ["TrainDirectionResult", "TrainDirectionSpec", "train_direction"]
 
@@ -78,9 +81,15 @@ def train_direction(
     """Train ``spec.method`` on every readable frame of ``spec.data`` and save it."""
     import numpy as np
 
+    from qdcnn.data.frames import load_frameset
+
     report = reporter or Reporter()
     method = get_method(spec.method)
-    parts = [_inputs(spec, data, report) for data in spec.specs]
+    cfg = spec.config
+    sets = [
+        load_frameset(d, seed=cfg.seed, steering_unit=cfg.labels.steering_unit) for d in spec.specs
+    ]
+    parts = [_inputs(spec, frames, sets, report) for frames in sets]
     shapes = {np.shape(x)[1:] for x, _, _ in parts}
     if len(shapes) > 1:
         raise InputError(", ".join(spec.specs), f"inputs of different sizes {sorted(shapes)}")
@@ -107,16 +116,14 @@ def train_direction(
 
 
 def _inputs(
-    spec: TrainDirectionSpec, data: str, report: Reporter
+    spec: TrainDirectionSpec, frames: FrameSet, train: list[FrameSet], report: Reporter
 ) -> tuple[Any, Any, list[Failure]]:
-    """Readable inputs (lane features or frames), their labels and the failures of ``data``."""
-    from qdcnn.data.frames import load_frameset, stack_images
+    """Readable inputs (lane features or frames), their labels and the failures of ``frames``
+    (a percentile label threshold is taken from all of ``train``)."""
+    from qdcnn.data.frames import stack_images
     from qdcnn.direction.lane_data import load_lane_data
 
     method = get_method(spec.method)
-    frames = load_frameset(
-        data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-    )
     if method.inputs == "lanes":
         assert method.grouping is not None
         with report.progress(len(frames), f"lane features ({frames.name})") as advance:
@@ -127,8 +134,10 @@ def _inputs(
                 use_cache=spec.use_cache,
                 on_frame=advance,
                 check_labels=False,
+                train=train,
             )
         return lanes.features(method.grouping), lanes.y, lanes.failures
     images, readable, unreadable = stack_images(frames)
     problems = [Failure(p.source, str(p)) for p in frames.problems]
-    return images[readable], frames.labels(spec.config.labels)[readable], problems + unreadable
+    labels = frames.labels(spec.config.labels, train=train)
+    return images[readable], labels[readable], problems + unreadable
