@@ -49,6 +49,7 @@ SYNONYMS = (("--method", "--methods"), ("--shadow-set", "--shadow-sets"))
 #: Names a plural apart that are different things.
 NOT_PLURALS = {
     ("--centroid", "--centroids"): "a centroid value (detect-shadows) vs a number of them",
+    ("--seed", "--seeds"): "one seed vs how many seeds evaluate retrains with",
 }
 #: Options whose help names what they are in that command (what is written, seeded, read).
 HELP_PER_COMMAND = {

@@ -1,10 +1,16 @@
-"""``qdcnn evaluate``: cross-validated direction accuracy, the paper's accuracy table.
+"""``qdcnn evaluate``: direction scores with intervals, the paper's accuracy table.
 
 Every method of the registry (:mod:`qdcnn.direction.methods`) is evaluated by the one
 protocol of :mod:`qdcnn.direction.protocol`: contiguous folds with a gap, the method's
 hyperparameters chosen by an inner contiguous CV (with the gap) on the training folds
-only, accuracy pooled over all test frames. Lane methods read the cached lane features of
-the readable frames; frame methods (CNNs) read the frames themselves.
+only, scores pooled over all test frames in frame order: balanced accuracy (the main
+figure), accuracy, macro-F1, per-class recall, confusion, with 95 % block-bootstrap
+intervals and the training-majority baseline. Lane methods read the cached lane features
+of the readable frames; frame methods (CNNs) read the frames themselves. ``--seeds K``
+retrains every model K times (figures are means over the seeds), ``--paired`` compares
+methods on the same frames, and each finished fold is kept in the cache
+(:mod:`qdcnn.experiments.result_cache`) so a stopped run resumes. Training on some
+recordings and testing on others: :mod:`qdcnn.experiments.evaluate_cross`.
 """
 
 from __future__ import annotations
@@ -45,9 +51,17 @@ from qdcnn.runtime.reporting import Reporter
 __all__ = [
     "EvaluationResult",
     "EvaluationSpec",
+    "add_failures",
+    "array_digest",
     "evaluate_features",
     "evaluate_frames",
+    "fold_store",
+    "label_summary",
+    "method_seeds",
+    "options_key",
+    "paired_comparisons",
     "run_evaluation",
+    "seed_matters",
 ]
 
 
@@ -417,7 +431,7 @@ def _run_k_fold(
             "seeds": spec.seeds,
         },
     )
-    _add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
+    add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
     result.labels = label_summary(frames, spec.config, report)
     with executor_for(spec.scheduler) as executor:
         _evaluate_all(spec, frames, methods, result, report, executor)
@@ -495,7 +509,7 @@ def _evaluate_all(
         lane_methods = [m for m in methods if m.inputs == "lanes"]
         if lane_methods:
             lanes = _lane_data(spec, frames, lane_methods, report)
-            _add_failures(result, lanes.table.failures, report)
+            add_failures(result, lanes.table.failures, report)
             result.camera = lanes.table.camera
             for note in lanes.camera_notes():
                 report.note(note)
@@ -518,7 +532,7 @@ def _evaluate_all(
                 seeds=spec.seeds,
                 use_cache=spec.use_cache,
             )
-            _add_failures(result, failures, report)
+            add_failures(result, failures, report)
             res.extra["labels"] = result.labels
             result.results.append(res)
             report.result(res.to_dict())
@@ -541,7 +555,7 @@ def label_summary(
     return {**info.to_dict(), "class_balance": info.counts(), "description": info.describe()}
 
 
-def _add_failures(result: EvaluationResult, failures: list[Failure], report: Reporter) -> None:
+def add_failures(result: EvaluationResult, failures: list[Failure], report: Reporter) -> None:
     """Record and report the failures of items not failed already (by file)."""
     seen = {f.file for f in result.failures}
     for f in failures:

@@ -36,7 +36,7 @@ from qdcnn.errors import InputError
 from qdcnn.experiments.evaluate import (
     EvaluationResult,
     EvaluationSpec,
-    _add_failures,
+    add_failures,
     array_digest,
     label_summary,
     method_seeds,
@@ -107,7 +107,7 @@ def run_cross_evaluation(
         tested_on=[frames[t].name for t in tests],
     )
     for s in specs:
-        _add_failures(result, [Failure(p.source, str(p)) for p in frames[s].problems], report)
+        add_failures(result, [Failure(p.source, str(p)) for p in frames[s].problems], report)
     for train, test in splits:
         train_sets = [frames[s] for s in train]
         for s in (*train, *test):
@@ -123,6 +123,8 @@ def run_cross_evaluation(
                 [inputs.recording(m, t, train) for t in test],
                 spec,
             ):
+                names = [*res.extra["trained_on"], res.dataset]
+                res.extra["labels"] = {n: result.labels[n] for n in names}
                 result.results.append(res)
                 report.result(res.to_dict())
                 result.notes.extend(f"{res.method} on {res.dataset}: {n}" for n in res.notes)
@@ -173,14 +175,14 @@ class _Inputs:
                     use_cache=self.spec.use_cache,
                     on_frame=advance,
                 )
-            _add_failures(self.result, table.failures, self.report)
+            add_failures(self.result, table.failures, self.report)
             self._lanes[spec] = table
         return self._lanes[spec]
 
     def _stacked(self, spec: str) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
         if spec not in self._images:
             images, readable, failures = stack_images(self.frames[spec])
-            _add_failures(self.result, failures, self.report)
+            add_failures(self.result, failures, self.report)
             self._images[spec] = (images, readable)
         return self._images[spec]
 
