@@ -192,3 +192,33 @@ def test_a_percentile_threshold_comes_from_the_training_recordings_only() -> Non
     assert trained["label_threshold"] == tested["label_threshold"]  # both in norm units
     assert "p33 of the training frames" in tested["description"]
     assert trained["class_balance"]["straight"] == pytest.approx(0.33 * 150, abs=3)
+
+
+def test_a_rerun_reads_finished_units_and_a_new_method_runs_alone(tmp_path: Path) -> None:
+    units = tmp_path / "cache" / "evaluate"
+    spec = EvaluationSpec("", "kmeans-uu", train=(TRACK2,), test=(TRACK1, RAIN))
+    first = run_evaluation(spec)
+    assert len(list(units.glob("unit-*.json"))) == 2  # one per test recording
+    again = run_evaluation(spec)
+    assert [r.predictions for r in again.results] == [r.predictions for r in first.results]
+    assert len(list(units.glob("unit-*.json"))) == 2
+    both = run_evaluation(replace(spec, methods="kmeans-uu,image-split-uu"))
+    assert len(list(units.glob("unit-*.json"))) == 4
+    assert both.results[0].to_dict()["balanced_accuracy"] == first.results[0].balanced_accuracy
+
+
+@pytest.mark.slow
+def test_a_cnn_trains_on_the_training_recordings_and_scores_the_test_one() -> None:
+    pytest.importorskip("torch")
+    from qdcnn.direction.methods import TrainingOptions
+
+    spec = EvaluationSpec(
+        "",
+        "dnn-pilotnet",
+        train=("synthetic:track2:100",),
+        test=("synthetic:track1:80",),
+        training=TrainingOptions(epochs=1, threads=1),
+    )
+    (r,) = run_evaluation(spec).results
+    assert r.n == 80 and r.extra["trained_on"] == ["synthetic-track2"]
+    assert r.accuracy == pytest.approx(score(r.test_labels, r.predictions[0]).accuracy)
