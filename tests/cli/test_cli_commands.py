@@ -325,9 +325,18 @@ def test_evaluate_across_recordings_and_its_mistakes(
     assert res.exit_code == 2 and "seeds=0 is invalid" in res.stderr
     res = runner.invoke(app, cross)
     assert res.exit_code == 2 and "test='none' is invalid" in res.stderr
-    two = ["--data", "synthetic:track1:60", "--data", "synthetic:track2:60"]
+    two = ["--data", "synthetic:track1:120", "--data", "synthetic:track2:120"]
     res = runner.invoke(app, ["evaluate", *two])
     assert res.exit_code == 2 and "--protocol leave-one-out" in res.stderr
+    res = runner.invoke(
+        app, ["evaluate", *two, "--protocol", "leave-one-out", "--method", "kmeans-uu", "--json"]
+    )
+    assert res.exit_code == 0, res.stderr
+    rows = json_lines(res.stdout)
+    assert [(r["tested_on"], r["trained_on"]) for r in rows] == [
+        ("synthetic-track1", ["synthetic-track2"]),
+        ("synthetic-track2", ["synthetic-track1"]),
+    ]
 
 
 def test_evaluate_rejects_unknown_feature_modes_and_thread_counts() -> None:
