@@ -52,6 +52,15 @@ def test_both_are_registered_classical_methods_with_a_c_grid() -> None:
     assert not any("logreg" in n for n in notes)
 
 
+@pytest.mark.parametrize("name", ["hog-logreg", "lines-logreg"])
+def test_noise_sweeps_refuse_them_as_they_have_no_circuit(name: str) -> None:
+    from qdcnn.experiments.noise.options import parse_methods
+
+    with pytest.raises(ParameterError, match=f"methods='{name}' is invalid: a quantum method"):
+        parse_methods(name)
+    assert name not in parse_methods("all")
+
+
 def test_lines_predictions_are_those_of_the_sklearn_pipeline(rng: np.random.Generator) -> None:
     X, y = _lane_table(rng)
     clf = LinesLogisticClassifier(C=0.1).fit(X, y)
@@ -81,6 +90,28 @@ def test_hog_reads_any_frame_size_and_grey_frames(rng: np.random.Generator) -> N
     grey = small[..., 0]
     width = 8 * (128 // 8) * (40 // 8)
     assert hog_rows(small).shape == hog_rows(large).shape == hog_rows(grey).shape == (2, width)
+
+
+def test_hog_rows_are_the_studies_recipe_and_remembered(rng: np.random.Generator) -> None:
+    """The band, size and bins of benchmarks/direction_study.py (rows 60-139 of a 160-row
+    frame, 128 x 40, 8 bins), resized by area as in benchmarks/lane_study.py."""
+    import cv2
+    from skimage.feature import hog
+
+    frames = rng.integers(0, 255, (3, 160, 320, 3), dtype=np.uint8)
+    expected = [
+        hog(
+            cv2.resize(
+                cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[60:140], (128, 40), interpolation=cv2.INTER_AREA
+            ),
+            orientations=8,
+            pixels_per_cell=(8, 8),
+            cells_per_block=(1, 1),
+        )
+        for f in frames
+    ]
+    np.testing.assert_array_equal(hog_rows(frames), expected)
+    np.testing.assert_array_equal(hog_rows(frames), expected)  # from the cache
 
 
 @pytest.mark.parametrize(

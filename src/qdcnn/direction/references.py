@@ -37,12 +37,23 @@ __all__ = ["HOGLogisticClassifier", "LinesLogisticClassifier", "LogisticReferenc
 
 #: The inverse regularisation strengths the inner contiguous CV chooses from.
 C_GRID: tuple[float, ...] = (0.01, 0.1, 1.0)
+#: HOG rows remembered by :func:`hog_rows` (least recently used first out; 5 KiB each
+#: at the default size, so about 50 MiB at most).
+HOG_CACHE_SIZE = 10_000
+_HOG_CACHE: dict[tuple[Any, ...], NDArray[np.float64]] = {}
 
 
 class LogisticReference(ClassifierMixin, BaseEstimator):
     """Standardised multinomial logistic regression on the rows :meth:`features` makes.
 
     Subclasses define :meth:`features` (inputs -> a float table) and its parameters.
+
+    Parameters
+    ----------
+    C : float
+        Inverse L2 regularisation strength (the registry's grid: :data:`C_GRID`).
+    max_iter : int
+        Iterations of the solver.
 
     Attributes
     ----------
@@ -174,7 +185,6 @@ def hog_rows(
     ndarray, shape (N, orientations * (width // cell) * (height // cell))
     """
     import cv2
-    from skimage.feature import hog
 
     arr = _checked_frames(frames)
     h = arr.shape[1]
@@ -183,10 +193,30 @@ def hog_rows(
     for frame in arr:
         grey = cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY) if frame.ndim == 3 else frame
         small = cv2.resize(grey[top:bottom], size, interpolation=cv2.INTER_AREA)
-        cells = (cell, cell)
-        rows.append(hog(small, orientations, pixels_per_cell=cells, cells_per_block=(1, 1)))
+        rows.append(_band_hog(small, orientations, cell))
     width = orientations * (size[0] // cell) * (size[1] // cell)
     return np.asarray(rows, dtype=np.float64).reshape(len(rows), width)
+
+
+def _band_hog(small: NDArray[np.uint8], orientations: int, cell: int) -> NDArray[np.float64]:
+    """``skimage.feature.hog`` of one resized band, remembered by its pixels.
+
+    The protocol computes the features of a frame once per inner fit (3 inner folds x
+    the grid, then the refit, in each outer fold) and skimage's HOG is the slow step
+    (milliseconds a frame), so the last :data:`HOG_CACHE_SIZE` results are kept under
+    the band's exact bytes and settings: the same pixels give the same row.
+    """
+    from skimage.feature import hog
+
+    key = (small.tobytes(), small.shape, orientations, cell)
+    row = _HOG_CACHE.pop(key, None)
+    if row is None:
+        cells = (cell, cell)
+        row = hog(small, orientations, pixels_per_cell=cells, cells_per_block=(1, 1))
+    _HOG_CACHE[key] = row
+    if len(_HOG_CACHE) > HOG_CACHE_SIZE:
+        _HOG_CACHE.pop(next(iter(_HOG_CACHE)))
+    return np.asarray(row, dtype=np.float64)
 
 
 def _checked_frames(frames: ArrayLike) -> NDArray[np.uint8]:
@@ -206,10 +236,8 @@ class HOGLogisticClassifier(LogisticReference):
 
     Parameters
     ----------
-    C : float
-        Inverse L2 regularisation strength (the registry's grid: :data:`C_GRID`).
-    max_iter : int
-        Iterations of the solver.
+    C, max_iter
+        As for :class:`LogisticReference`.
     band, size, orientations, cell
         As for :func:`hog_rows`.
 
@@ -255,12 +283,7 @@ class HOGLogisticClassifier(LogisticReference):
 class LinesLogisticClassifier(LogisticReference):
     """``lines-logreg``: logistic regression on the fitted lines' features and missing flags.
 
-    Parameters
-    ----------
-    C : float
-        Inverse L2 regularisation strength (the registry's grid: :data:`C_GRID`).
-    max_iter : int
-        Iterations of the solver.
+    Parameters: ``C`` and ``max_iter``, as for :class:`LogisticReference`.
 
     Examples
     --------
