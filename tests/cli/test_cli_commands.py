@@ -416,7 +416,9 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     assert res.exit_code == 0, res.stderr
     assert "note: skipping dnn-pilotnet: torch is not installed" in res.stderr
     methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
-    assert len(methods) == 6 and not any(m.startswith("dnn-") for m in methods)
+    # the six paper lane methods and the two classical references (hog-logreg, lines-logreg)
+    assert len(methods) == 8 and not any(m.startswith("dnn-") for m in methods)
+    assert {"hog-logreg", "lines-logreg"} <= set(methods)
     if importlib.util.find_spec("torch") is None:
         return
     monkeypatch.setattr("qdcnn.experiments.evaluate.has_torch", lambda: True)
@@ -432,7 +434,7 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
         ("qdcnn-uuconv", "qdcnn-uuconv-classical"),
         ("qdcnn-quanv", "qdcnn-quanv-classical"),
     ]
-    assert methods[6:] == [
+    assert methods[7:] == [  # after the lane methods (lines-logreg last), in registry order
         "dnn-pilotnet",
         "qdcnn-head",
         "qdcnn-head-classical",
@@ -440,6 +442,7 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
         "qdcnn-uuconv-classical",
         "qdcnn-quanv",
         "qdcnn-quanv-classical",
+        "hog-logreg",
     ]
 
 

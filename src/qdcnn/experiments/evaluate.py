@@ -128,6 +128,7 @@ def evaluate_frames(
     options: TrainingOptions | None = None,
     folds: int = 5,
     gap: int = 5,
+    inner_folds: int = 3,
     executor: Any = None,
     seeds: int = 1,
     use_cache: bool = False,
@@ -135,8 +136,10 @@ def evaluate_frames(
     """Cross-validate one frame method (a CNN) on the readable frames of ``frames``.
 
     Each fold trains a fresh estimator on the training frames (its early stopping
-    validates on frames of those, never on the test block) and predicts the test block.
-    ``seeds`` and ``use_cache`` as in :func:`evaluate_features`.
+    validates on frames of those, never on the test block) and predicts the test block;
+    a method with a grid (``hog-logreg``; the CNNs have none) chooses from it by the
+    inner contiguous CV of ``inner_folds`` on the training frames. ``seeds`` and
+    ``use_cache`` as in :func:`evaluate_features`.
 
     Returns
     -------
@@ -152,7 +155,7 @@ def evaluate_frames(
     y = np.asarray(labels, dtype=np.int64)[keep]
     check_labels_usable(y, source=frames.spec)
     run_seeds, notes = method_seeds(m, cfg, opts, seeds)
-    protocol = {"folds": folds, "gap": gap, "inner_folds": 0}
+    protocol = {"folds": folds, "gap": gap, "inner_folds": inner_folds}
     x = images[keep]
     cvs = [
         cross_validate(
@@ -161,13 +164,14 @@ def evaluate_frames(
             y,
             folds=folds,
             gap=gap,
-            inner_folds=0,
+            inner_folds=inner_folds,
             executor=executor,
             store=fold_store(m, replace(cfg, seed=seed), opts, protocol, x, y, use_cache),
         )
         for seed in run_seeds
     ]
     extra: dict[str, Any] = {
+        "chosen_hyperparameters": cvs[0].chosen,
         "folds": folds,
         "gap": gap,
         "epochs": opts.epochs,
@@ -528,6 +532,7 @@ def _evaluate_all(
                 options=spec.training,
                 folds=spec.folds,
                 gap=spec.gap,
+                inner_folds=spec.inner_folds,
                 executor=executor,
                 seeds=spec.seeds,
                 use_cache=spec.use_cache,

@@ -208,9 +208,8 @@ def cross_evaluate(
         picked: dict[str, Any] = {}
         if any(hit is None for hit in done.values()):
             estimator, grid = m.estimator(cfg, opts)
-            inner = spec.inner_folds if m.inputs == "lanes" else 0
             fitted, picked = fit_with_search(
-                estimator, grid, x_train, y_train, inner_folds=inner, gap=spec.gap
+                estimator, grid, x_train, y_train, inner_folds=spec.inner_folds, gap=spec.gap
             )
         for t in tests:
             hit = done[t.name]
