@@ -222,3 +222,8 @@ def test_a_cnn_trains_on_the_training_recordings_and_scores_the_test_one() -> No
     (r,) = run_evaluation(spec).results
     assert r.n == 80 and r.extra["trained_on"] == ["synthetic-track2"]
     assert r.accuracy == pytest.approx(score(r.test_labels, r.predictions[0]).accuracy)
+
+
+def test_a_percentile_threshold_inside_one_recording_is_refused() -> None:
+    with pytest.raises(ParameterError, match="a percentile \\(pNN\\) is taken from training"):
+        run_evaluation(EvaluationSpec(f"{TRACK2}@threshold=p33", "kmeans-uu"))

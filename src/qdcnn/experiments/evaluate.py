@@ -29,7 +29,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
 from qdcnn.data.images import require_file
-from qdcnn.data.labels import check_labels_usable
+from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
     DirectionMethod,
@@ -423,6 +423,13 @@ def _run_k_fold(
     frames = load_frameset(
         spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
     )
+    if isinstance(frames.threshold_request(spec.config.labels), Quantile):
+        raise ParameterError(
+            "data",
+            spec.data,
+            "a fixed label threshold within one recording: a percentile (pNN) is taken from "
+            "training recordings (--train/--test or --protocol leave-one-out)",
+        )
     ContiguousKFold(spec.folds, spec.gap).check(len(frames))
     result = EvaluationResult(
         frames.name,
