@@ -45,6 +45,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._closing import ClosesOnExit
 from qdcnn._fileio import temporary_sibling
 from qdcnn._optional import has_module, require
 from qdcnn._validation import has_shape
@@ -213,7 +214,7 @@ def _first_line(exc: BaseException) -> str:
     return text[:200] or type(exc).__name__
 
 
-class VideoReader:
+class VideoReader(ClosesOnExit):
     """An open video file: its :attr:`info` and frames from any index.
 
     Parameters
@@ -289,17 +290,6 @@ class VideoReader:
 
     def close(self) -> None:
         self._backend.close()
-
-    def __enter__(self) -> VideoReader:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 @dataclass

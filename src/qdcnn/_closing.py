@@ -1,0 +1,28 @@
+"""Objects that hold a resource until ``close()``, usable in a ``with`` block."""
+
+from __future__ import annotations
+
+from types import TracebackType
+from typing import Self
+
+
+class ClosesOnExit:
+    """Mixin: ``with obj:`` gives ``obj`` and calls ``obj.close()`` on the way out, error or not.
+
+    A subclass defines :meth:`close`; one that must acquire something first overrides
+    ``__enter__`` too.
+    """
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
