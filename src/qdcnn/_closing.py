@@ -26,3 +26,29 @@ class ClosesOnExit:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+class FinishesOnExit:
+    """Mixin: ``with obj:`` gives ``obj``; leaving normally calls ``obj.close()`` (finish the
+    output), leaving on an exception ``obj.abort()`` (discard what is unfinished).
+    """
+
+    def close(self) -> object:
+        raise NotImplementedError
+
+    def abort(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
