@@ -6,15 +6,8 @@ from types import TracebackType
 from typing import Self
 
 
-class ClosesOnExit:
-    """Mixin: ``with obj:`` gives ``obj`` and calls ``obj.close()`` on the way out, error or not.
-
-    A subclass defines :meth:`close`; one that must acquire something first overrides
-    ``__enter__`` too.
-    """
-
-    def close(self) -> None:
-        raise NotImplementedError
+class _WithBlock:
+    """``with obj:`` gives ``obj``; leaving the block calls ``obj._leave_block(failed)``."""
 
     def __enter__(self) -> Self:
         return self
@@ -25,10 +18,27 @@ class ClosesOnExit:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        self._leave_block(failed=exc_type is not None)
+
+    def _leave_block(self, *, failed: bool) -> None:
+        raise NotImplementedError
+
+
+class ClosesOnExit(_WithBlock):
+    """Mixin: ``with obj:`` gives ``obj`` and calls ``obj.close()`` on the way out, error or not.
+
+    A subclass defines :meth:`close`; one that must acquire something first overrides
+    ``__enter__`` too.
+    """
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def _leave_block(self, *, failed: bool) -> None:
         self.close()
 
 
-class FinishesOnExit:
+class FinishesOnExit(_WithBlock):
     """Mixin: ``with obj:`` gives ``obj``; leaving normally calls ``obj.close()`` (finish the
     output), leaving on an exception ``obj.abort()`` (discard what is unfinished).
     """
@@ -39,16 +49,8 @@ class FinishesOnExit:
     def abort(self) -> None:
         raise NotImplementedError
 
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.close()
-        else:
+    def _leave_block(self, *, failed: bool) -> None:
+        if failed:
             self.abort()
+        else:
+            self.close()
