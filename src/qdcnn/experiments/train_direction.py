@@ -6,11 +6,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import check_labels_usable
-from qdcnn.direction.methods import TrainingOptions, get_method
+from qdcnn.direction.methods import TrainingOptions, check_fit_settings, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.reporting import Reporter
@@ -44,13 +43,7 @@ class TrainDirectionSpec:
         if not self.specs:
             raise ParameterError("data", "none", "one dataset spec or more")
         get_method(self.method)
-        check_int("gap", self.gap, 0, 10_000)
-        if self.inner_folds != 0:
-            check_int("inner_folds", self.inner_folds, 2, 100)
-        if self.training.weights is not None:
-            from qdcnn.data.images import require_file
-
-            require_file(self.training.weights, "weights file")
+        check_fit_settings(self.gap, self.inner_folds, self.training)
 
 
 @dataclass
