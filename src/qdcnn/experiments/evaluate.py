@@ -40,6 +40,7 @@ from qdcnn.direction.methods import (
 from qdcnn.direction.protocol import (
     RESAMPLES,
     ContiguousKFold,
+    CrossValidation,
     MethodResult,
     cross_validate,
     summarise,
@@ -93,19 +94,7 @@ def evaluate_features(
     check_labels_usable(y, source=dataset)
     run_seeds, notes = method_seeds(m, cfg, None, seeds)
     protocol = {"folds": folds, "gap": gap, "inner_folds": inner_folds}
-    cvs = [
-        cross_validate(
-            _Build(m, replace(cfg, seed=seed)),
-            X,
-            y,
-            folds=folds,
-            gap=gap,
-            inner_folds=inner_folds,
-            executor=executor,
-            store=fold_store(m, replace(cfg, seed=seed), None, protocol, X, y, use_cache),
-        )
-        for seed in run_seeds
-    ]
+    cvs = _seeded_runs(m, cfg, None, X, y, protocol, run_seeds, executor, use_cache)
     result = summarise(
         m.name,
         dataset,
@@ -156,20 +145,7 @@ def evaluate_frames(
     check_labels_usable(y, source=frames.spec)
     run_seeds, notes = method_seeds(m, cfg, opts, seeds)
     protocol = {"folds": folds, "gap": gap, "inner_folds": inner_folds}
-    x = images[keep]
-    cvs = [
-        cross_validate(
-            _Build(m, replace(cfg, seed=seed), opts),
-            x,
-            y,
-            folds=folds,
-            gap=gap,
-            inner_folds=inner_folds,
-            executor=executor,
-            store=fold_store(m, replace(cfg, seed=seed), opts, protocol, x, y, use_cache),
-        )
-        for seed in run_seeds
-    ]
+    cvs = _seeded_runs(m, cfg, opts, images[keep], y, protocol, run_seeds, executor, use_cache)
     extra: dict[str, Any] = {
         "chosen_hyperparameters": cvs[0].chosen,
         "folds": folds,
@@ -182,6 +158,32 @@ def evaluate_frames(
     result = summarise(m.name, frames.name, y, cvs, extra=extra, seeds=run_seeds)
     result.notes[:0] = notes
     return result, failures
+
+
+def _seeded_runs(
+    m: DirectionMethod,
+    cfg: PipelineConfig,
+    opts: TrainingOptions | None,
+    X: NDArray[Any],
+    y: NDArray[np.int64],
+    protocol: dict[str, int],
+    seeds: list[int],
+    executor: Any,
+    use_cache: bool,
+) -> list[CrossValidation]:
+    """One cross-validation of ``m`` per seed (the config's seed replaced), folds kept."""
+    runs = []
+    for seed in seeds:
+        seeded = replace(cfg, seed=seed)
+        store = fold_store(m, seeded, opts, protocol, X, y, use_cache)
+        build = _Build(m, seeded, opts)
+        folds, gap, inner = protocol["folds"], protocol["gap"], protocol["inner_folds"]
+        runs.append(
+            cross_validate(
+                build, X, y, folds=folds, gap=gap, inner_folds=inner, executor=executor, store=store
+            )
+        )
+    return runs
 
 
 def method_seeds(
