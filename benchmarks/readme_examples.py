@@ -288,7 +288,8 @@ def updated_output(expected: list[str], actual: list[str]) -> tuple[list[str], b
     if not result.aligned or (not has_gap and len(expected) != len(actual)):
         return list(actual), False
     cells = timing_cells(actual)
-    stale = {i for i, j in result.pairs.items() if not line_matches(expected[i], actual[j], cells[j])}
+    pairs = result.pairs
+    stale = {i for i, j in pairs.items() if not line_matches(expected[i], actual[j], cells[j])}
     for table in _tables(expected):
         if stale & table:  # the whole table from one run, so its columns line up
             stale |= table & result.pairs.keys()
@@ -353,7 +354,8 @@ def scratch_environment(root: Path, cache: Path) -> dict[str, str]:
     """PATH with this interpreter's ``qdcnn`` and ``python``; fixed width; a scratch cache."""
     bin_dir = root / "bin"
     bin_dir.mkdir(exist_ok=True)
-    for name, target in (("qdcnn", f'"{sys.executable}" -m qdcnn'), ("python", f'"{sys.executable}"')):
+    python = f'"{sys.executable}"'
+    for name, target in (("qdcnn", f"{python} -m qdcnn"), ("python", python)):
         script = bin_dir / name
         script.write_text(f'#!/bin/sh\nexec {target} "$@"\n', encoding="utf-8")
         script.chmod(0o755)
