@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
 
@@ -54,3 +57,15 @@ def shared_recording(name: str) -> Path:
     if not (path / "driving_log.csv").is_file():
         pytest.skip(f"real recording {name} not available at {path}")
     return path
+
+
+@pytest.fixture
+def busy_cpu() -> Iterator[None]:
+    """A process spinning on one core beside the test, as on a loaded CI machine (Dask's
+    workers then register, start and answer late)."""
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        spinner.kill()
+        spinner.wait()

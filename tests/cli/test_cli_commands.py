@@ -314,9 +314,10 @@ def test_a_model_trained_on_a_feature_mode_detects_with_it(
     assert json.loads(res.stdout)["n"] == 100
     lanes = DirectionModel.load(model).config.lanes
     assert lanes.edge_channels == "rgb" and not lanes.remove_shadows
-    res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(tmp_path)])
+    drive = tmp_path / "drive"  # synth refuses a non-empty folder (the model is in tmp_path)
+    res = runner.invoke(app, ["synth", "--preset", "track2", "--n", "3", "--out", str(drive)])
     assert res.exit_code == 0, res.stderr
-    frames = tmp_path / "udacity" / "IMG"
+    frames = drive / "udacity" / "IMG"
     res = runner.invoke(
         app,
         ["detect-lanes", str(frames), "--out", str(tmp_path / "lanes"), "--model", str(model)],
@@ -353,7 +354,9 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     assert res.exit_code == 0, res.stderr
     assert "note: skipping dnn-pilotnet: torch is not installed" in res.stderr
     methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
-    assert len(methods) == 6 and not any(m.startswith("dnn-") for m in methods)
+    # the six paper lane methods and the two classical references (hog-logreg, lines-logreg)
+    assert len(methods) == 8 and not any(m.startswith("dnn-") for m in methods)
+    assert {"hog-logreg", "lines-logreg"} <= set(methods)
     if importlib.util.find_spec("torch") is None:
         return
     monkeypatch.setattr("qdcnn.experiments.evaluate.has_torch", lambda: True)
@@ -362,7 +365,7 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     assert res.exit_code == 0, res.stderr
     assert "note: skipping dnn-resnet50: no GPU" in res.stderr
     methods = [json.loads(line)["method"] for line in res.stdout.splitlines()]
-    assert methods[6:] == [
+    assert methods[7:] == [  # after the lane methods (lines-logreg last), in registry order
         "dnn-pilotnet",
         "qdcnn-head",
         "qdcnn-head-classical",
@@ -370,6 +373,7 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
         "qdcnn-uuconv-classical",
         "qdcnn-quanv",
         "qdcnn-quanv-classical",
+        "hog-logreg",
     ]
 
 

@@ -149,7 +149,7 @@ def test_circuit_bad_input(args: list[str], message: str) -> None:
         (["--p", "0,x"], "p='0,x' is invalid"),
         (["--channels", "all,bitflip"], "channel='bitflip' is invalid"),
         (["--phase-damping", "both"], "phase_damping='both' is invalid"),
-        (["--methods", "uu,dnn"], "methods='dnn' is invalid"),
+        (["--method", "uu,dnn"], "methods='dnn' is invalid"),
         (["--grouping", "halves"], "grouping='halves' is invalid"),
         (["--readout", "2"], "readout=2.0 is invalid"),
         (["--shots", "-3"], "shots=-3 is invalid"),
@@ -165,7 +165,7 @@ def test_noise_sweep_bad_options(args: list[str], message: str) -> None:
 
 
 def test_noise_sweep_needs_data_for_direction_methods() -> None:
-    res = runner.invoke(app, ["noise-sweep", "--methods", "vqc"])
+    res = runner.invoke(app, ["noise-sweep", "--method", "vqc"])
     assert res.exit_code == 2
     assert "data=None is invalid: a dataset (--data) for the uu and vqc methods" in res.stderr
 
@@ -173,7 +173,7 @@ def test_noise_sweep_needs_data_for_direction_methods() -> None:
 def test_noise_sweep_direction_json_and_figure(tmp_path: Path) -> None:
     plot = tmp_path / "fig.png"
     # seed 3: a drive of 17 left and 43 straight frames
-    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--methods", "uu,vqc"]
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu,vqc"]
     args += ["--channels", "bit-flip,phase-damping", "--phase-damping", "paper", "--p", "0:1:0.5"]
     args += ["--folds", "2", "--gap", "0", "--inner-folds", "0", "--plot", str(plot), "--json"]
     res = runner.invoke(app, args)
@@ -205,7 +205,7 @@ def test_noise_sweep_shadow_set_with_a_bad_file(tmp_path: Path) -> None:
         write_mask(root / "masks" / f"s{i}.png", m)
     (root / "images" / "zz_broken.png").write_bytes(b"not a png")
     plot = tmp_path / "ber.png"
-    args = ["noise-sweep", "--shadow-set", str(root), "--methods", "uu-shadow"]
+    args = ["noise-sweep", "--shadow-set", str(root), "--method", "uu-shadow"]
     args += ["--channels", "depolarizing", "--p", "0,1", "--plot", str(plot), "--json"]
     res = runner.invoke(app, args)
     assert res.exit_code == 1, res.output
@@ -218,7 +218,7 @@ def test_noise_sweep_shadow_set_with_a_bad_file(tmp_path: Path) -> None:
 
 
 def test_noise_sweep_table_output() -> None:
-    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--methods", "uu"]
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu"]
     args += ["--channels", "depolarizing", "--p", "0,0.5", "--folds", "2", "--inner-folds", "0"]
     args += ["--train-under-noise", "--shots", "128", "--readout", "0.01"]
     res = runner.invoke(app, args)
@@ -296,3 +296,14 @@ def test_the_trained_head_of_a_saved_model_exports_and_runs_on_aer(tmp_path: Pat
     hist = counts.result().get_counts()
     aer = np.array([hist.get(format(i, "04b"), 0) for i in range(16)]) / 20000
     assert np.abs(aer - np.array(obj["probabilities"])).max() < 0.02  # 20,000 shots
+
+
+def test_noise_sweep_takes_evaluates_lane_options_and_says_what_auto_estimated() -> None:
+    args = ["noise-sweep", "--data", "synthetic:track1:60", "--seed", "3", "--method", "uu"]
+    args += ["--channels", "bit-flip", "--p", "0", "--folds", "2", "--inner-folds", "0"]
+    args += ["--lanes", "auto", "--edges", "rgb", "--track", "ema", "--json"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert res.stderr.startswith("note: synthetic-track1: camera 320x160: horizon at")
+    (row,) = json_lines(res.stdout)
+    assert row["method"] == "uu" and 0.0 <= row["accuracy"] <= 1.0

@@ -67,6 +67,20 @@ def test_run_a_dataset_spec_without_video(tmp_path: Path) -> None:
     assert not (tmp_path / "synthetic-track1" / "overlay.mp4").exists()
 
 
+def test_frames_csv_has_the_same_columns_with_and_without_smooth(tmp_path: Path) -> None:
+    headers = []
+    for smooth in ("1", "3"):
+        out = tmp_path / smooth
+        args = ["run", "synthetic:track1:10", "--out", str(out), "--no-video", "--smooth", smooth]
+        assert runner.invoke(app, args).exit_code == 0
+        rows = (out / "synthetic-track1" / "frames.csv").read_text().splitlines()
+        headers.append(rows[0])
+        if smooth == "1":  # no vote: the raw decision is the decision
+            raw = [r.split(",")[2:4] for r in rows[1:]]
+            assert all(direction == direction_raw for direction, direction_raw in raw)
+    assert headers[0] == headers[1] and "direction,direction_raw" in headers[0]
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

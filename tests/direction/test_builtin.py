@@ -9,12 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from qdcnn.config import PipelineConfig
 from qdcnn.direction.builtin import (
     DEFAULT_METHOD,
     default_direction_model,
     default_model_path,
+    direction_model,
 )
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
 from qdcnn.runtime.reporting import Reporter
 
@@ -71,6 +73,27 @@ def test_the_key_follows_method_seed_and_data(cache: Path) -> None:
         default_model_path(DEFAULT_METHOD, 0, SMALL[:1]),
     }
     assert len(keys) == 4
+
+
+def test_the_key_and_the_model_follow_the_pipeline_config(cache: Path) -> None:
+    rgb = PipelineConfig().with_lane_options(edges="rgb")
+    assert default_model_path(DEFAULT_METHOD, 0, SMALL) == default_model_path(
+        DEFAULT_METHOD, 0, SMALL, PipelineConfig()
+    )  # the default config keeps the keys of earlier versions
+    assert default_model_path(DEFAULT_METHOD, 0, SMALL) != default_model_path(
+        DEFAULT_METHOD, 0, SMALL, rgb
+    )
+    model = default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1], config=rgb)
+    assert model.config == rgb
+
+
+def test_a_model_file_refuses_other_lane_settings(tmp_path: Path) -> None:
+    notes: list[str] = []
+    with pytest.raises(ParameterError, match="carries the lane settings it was trained with"):
+        direction_model(
+            tmp_path / "m.qdcnn", DEFAULT_METHOD, 0, PipelineConfig.paper(), notes.append
+        )
+    assert notes == []
 
 
 class _StepCounter(Reporter):

@@ -27,11 +27,12 @@ runner = CliRunner()
 
 
 def test_the_paper_methods_and_baselines_are_registered_once() -> None:
-    lanes = method_names(inputs="lanes")
-    assert lanes == tuple(f"{g}-{k}" for k in ("uu", "vqc") for g in GROUPINGS)
+    *lanes, lines_reference = method_names(inputs="lanes")
+    assert tuple(lanes) == tuple(f"{g}-{k}" for k in ("uu", "vqc") for g in GROUPINGS)
     assert {get_method(m).kind for m in lanes} == {"uu", "vqc"}
     assert all(get_method(m).quantum for m in lanes)
-    frames = method_names(inputs="frames")
+    *frames, hog_reference = method_names(inputs="frames")
+    assert (lines_reference, hog_reference) == ("lines-logreg", "hog-logreg")
     assert frames[0] == "dnn-pilotnet" and frames[-1] == "dnn-resnet50"
     assert set(frames[1:-1]) == {
         f"qdcnn-{k}{t}" for k in ("head", "uuconv", "quanv") for t in ("", "-classical")

@@ -16,7 +16,7 @@ from qdcnn.direction.protocol import (
     pooled_accuracy,
     summarise,
 )
-from qdcnn.errors import ParameterError
+from qdcnn.errors import InputError, ParameterError
 
 
 @pytest.mark.parametrize(("n", "k", "gap"), [(100, 5, 0), (103, 4, 5), (50, 10, 2)])
@@ -112,3 +112,17 @@ def test_inner_search_keeps_the_gap_around_its_test_blocks() -> None:
         left_out = np.setdiff1d(np.arange(60), train)
         assert len(left_out) >= 20 + 4  # a 20-frame test block plus at least one 4-frame gap
     assert len(_Recorder.seen[-1]) == 60  # refit on everything
+
+
+class _Untrainable(_Recorder):
+    """Refuses every training set, as a lane method does when no frame has lines."""
+
+    def fit(self, X, y):
+        raise InputError("X", "nothing to train on")
+
+
+def test_a_search_whose_every_candidate_fails_raises_the_estimators_own_error() -> None:
+    X = np.arange(60)[:, None].astype(float)
+    y = np.repeat([0, 1, 2], 20)
+    with pytest.raises(InputError, match="nothing to train on"):
+        fit_with_search(_Untrainable(), {"c": [0, 1]}, X, y, inner_folds=3)

@@ -75,7 +75,7 @@ COMMANDS: dict[str, tuple[list[str], list[str]]] = {
         ],
     ),
     "noise-sweep": (
-        ["noise-sweep", "--methods", "uu-shadow", "--channels", "bit-flip", "--p", "0"],
+        ["noise-sweep", "--method", "uu-shadow", "--channels", "bit-flip", "--p", "0"],
         [
             "--shots",
             "--readout",
@@ -101,7 +101,7 @@ COMMANDS: dict[str, tuple[list[str], list[str]]] = {
         ["--smooth", "--chunk", "--seed", "--wait"],
     ),
     "train-shadows": (
-        ["train-shadows", "--data", "{root}/nowhere", "--out", "{out}/m.json"],
+        ["train-shadows", "--shadow-set", "{root}/nowhere", "--out", "{out}/m.json"],
         ["--centroids", "--seed"],
     ),
 }

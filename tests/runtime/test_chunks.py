@@ -14,9 +14,8 @@ def test_majority_vote_prefers_the_most_recent_of_tied_decisions() -> None:
     assert majority_vote([None, None]) is None
 
 
-def test_the_header_has_raw_decisions_only_when_smoothing() -> None:
-    assert csv_header(HalvesProcessor(), 1) == [
-        "frame", "timestamp", "direction", "p_left", "p_straight", "p_right",
+def test_the_header_is_fixed_with_the_raw_decision_always() -> None:
+    assert csv_header(HalvesProcessor()) == [
+        "frame", "timestamp", "direction", "direction_raw", "p_left", "p_straight", "p_right",
         "shadow_fraction", "lane_status",
     ]  # fmt: skip
-    assert csv_header(HalvesProcessor(), 3)[3] == "direction_raw"

@@ -13,15 +13,19 @@ import json
 import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 
-from qdcnn.errors import QdcnnError
+from qdcnn.errors import ParameterError, QdcnnError
 from qdcnn.runtime.reporting import Advance, Failure, Reporter
+
+if TYPE_CHECKING:
+    from qdcnn.config import PipelineConfig
 
 try:  # Typer 0.24+ carries its own copy of click and does not install click
     from typer import _click as click
@@ -57,6 +61,108 @@ QuietOpt = Annotated[
 GapOpt = Annotated[
     int, typer.Option(help="Frames left out of training on each side of a test block.")
 ]
+WaitOpt = Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")]
+InnerFoldsOpt = Annotated[
+    int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
+]
+EpochsOpt = Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 25).")]
+ThreadsOpt = Annotated[
+    int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
+]
+SteeringUnitOpt = Annotated[
+    str, typer.Option(help="Unit of the recorded steering: auto | norm ([-1, 1]) | rad | deg.")
+]
+LabelThresholdOpt = Annotated[
+    float | None,
+    typer.Option(help="Label threshold in the steering unit (default: the unit's own, 0.05 norm)."),
+]
+
+# The lane options: every command that runs the lane stage takes all of them, and
+# LaneOptions.config turns them into the PipelineConfig.
+LanesOpt = Annotated[
+    str,
+    typer.Option(
+        help="Lane settings: udacity (1 smoothing pass) | paper (30, the paper's ROI) | dashcam"
+        " | auto (ROI estimated per recording)."
+    ),
+]
+FeaturesOpt = Annotated[
+    str,
+    typer.Option(
+        help="Two classifier inputs: slopes (the paper) | far-offsets | road-centre"
+        " | vanishing-points."
+    ),
+]
+EdgesOpt = Annotated[
+    str, typer.Option(help="What Canny sees: grey (the paper) | rgb (colour Canny).")
+]
+ShadowRemovalOpt = Annotated[
+    bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
+]
+MarksOpt = Annotated[
+    str, typer.Option(help="Lane-mark evidence before Canny: none (the paper) | lab | hls.")
+]
+SegmentAnglesOpt = Annotated[
+    str | None, typer.Option(help="Keep Hough segments between MIN,MAX degrees from horizontal.")
+]
+InnerLinesOpt = Annotated[bool, typer.Option(help="Keep each side's innermost line.")]
+TrackOpt = Annotated[str, typer.Option(help="Track lines across frames: none | ema | kalman.")]
+
+
+@dataclass(frozen=True)
+class LaneOptions:
+    """The lane options of the command line (``--lanes`` to ``--track``); the defaults are
+    the paper's pipeline with one smoothing pass (``PipelineConfig()``)."""
+
+    lanes: str = "udacity"
+    features: str = "slopes"
+    edges: str = "grey"
+    shadow_removal: bool = True
+    marks: str = "none"
+    segment_angles: str | None = None
+    inner_lines: bool = False
+    track: str = "none"
+
+    def config(
+        self, seed: int, steering_unit: str = "auto", label_threshold: float | None = None
+    ) -> PipelineConfig:
+        """The pipeline config of these options, the seed and the label options."""
+        from qdcnn.config import PipelineConfig
+
+        config = PipelineConfig.preset(self.lanes, seed=seed)
+        config = config.with_labels(steering_unit=steering_unit, threshold=label_threshold)
+        config = config.with_lane_evidence(
+            marks=self.marks,
+            segment_angles=self._angles(),
+            inner_lines=self.inner_lines,
+            track=self.track,
+        )
+        return config.with_lane_options(
+            features=self.features, edges=self.edges, shadow_removal=self.shadow_removal
+        )
+
+    def _angles(self) -> tuple[float, float] | None:
+        if self.segment_angles is None:
+            return None
+        try:
+            lo, hi = (float(v) for v in self.segment_angles.split(","))
+        except ValueError:
+            raise ParameterError(
+                "segment-angles", self.segment_angles, "MIN,MAX in degrees, e.g. 20,80"
+            ) from None
+        return lo, hi
+
+
+T = TypeVar("T")
+
+
+def deprecated_spelling(value: T, old_value: T | None, old: str, new: str) -> T:
+    """``value``, or ``old_value`` when the option was given under its old name ``old``
+    (a hidden alias of ``new``), with a one-line note on stderr that ``old`` is deprecated."""
+    if old_value is None:
+        return value
+    report_note(f"{old} is deprecated; use {new}")
+    return old_value
 
 
 def emit(obj: Mapping[str, Any]) -> None:

@@ -20,7 +20,7 @@ def synth_cmd(
     width: Annotated[int, typer.Option(help="Frame width in pixels.")] = 320,
     height: Annotated[int, typer.Option(help="Frame height in pixels.")] = 160,
     layout: Annotated[str, typer.Option(help="udacity | shadows | carla | all")] = "all",
-    video: Annotated[bool, typer.Option("--video", help="Also write the drive as an mp4.")] = False,
+    video: Annotated[bool, typer.Option(help="Also write the drive as an mp4.")] = False,
     force: Annotated[
         bool, typer.Option("--force/--no-force", help="Replace what a non-empty --out holds.")
     ] = False,

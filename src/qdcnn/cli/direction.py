@@ -6,7 +6,6 @@ The runners, the config and the method registry are imported when a command runs
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -16,11 +15,26 @@ from rich.table import Table
 from qdcnn.cli._common import (
     CacheOpt,
     CliReporter,
+    EdgesOpt,
+    EpochsOpt,
+    FeaturesOpt,
     FoldsOpt,
     GapOpt,
+    InnerFoldsOpt,
+    InnerLinesOpt,
     JsonOpt,
+    LabelThresholdOpt,
+    LaneOptions,
+    LanesOpt,
+    MarksOpt,
     QuietOpt,
     SeedOpt,
+    SegmentAnglesOpt,
+    ShadowRemovalOpt,
+    SteeringUnitOpt,
+    ThreadsOpt,
+    TrackOpt,
+    WaitOpt,
     emit,
     fail,
     out,
@@ -28,47 +42,11 @@ from qdcnn.cli._common import (
 from qdcnn.errors import ParameterError, QdcnnError
 
 if TYPE_CHECKING:
-    from qdcnn.config import PipelineConfig
     from qdcnn.direction.methods import TrainingOptions
     from qdcnn.experiments.detect_lanes import DetectLanesResult
     from qdcnn.experiments.evaluate import EvaluationResult
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
-InnerOpt = Annotated[
-    int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
-]
-LanesOpt = Annotated[
-    str,
-    typer.Option(
-        help="Lane settings: udacity (1 smoothing pass) | paper (30, the paper's ROI) | dashcam"
-        " | auto (ROI estimated per recording)."
-    ),
-]
-MarksOpt = Annotated[
-    str, typer.Option(help="Lane-mark evidence before Canny: none (the paper) | lab | hls.")
-]
-AnglesOpt = Annotated[
-    str | None, typer.Option(help="Keep Hough segments between MIN,MAX degrees from horizontal.")
-]
-InnerOpt2 = Annotated[bool, typer.Option(help="Keep each side's innermost line.")]
-TrackOpt = Annotated[str, typer.Option(help="Track lines across frames: none | ema | kalman.")]
-EpochsOpt = Annotated[int, typer.Option(help="CNN epochs (dnn-* methods; paper: 25).")]
-WeightsOpt = Annotated[
-    Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
-]
-FeaturesOpt = Annotated[
-    str,
-    typer.Option(
-        help="Two classifier inputs: slopes (the paper) | far-offsets | road-centre"
-        " | vanishing-points."
-    ),
-]
-EdgesOpt = Annotated[
-    str, typer.Option(help="What Canny sees: grey (the paper) | rgb (colour Canny).")
-]
-ShadowRemovalOpt = Annotated[
-    bool, typer.Option(help="UU-dagger shadow removal before the lane stage (the paper: on).")
-]
 SchedulerOpt = Annotated[
     str | None, typer.Option(help="Run folds on Dask: local:N (N workers) or tcp://HOST:PORT.")
 ]
@@ -78,61 +56,10 @@ HeadOpt = Annotated[
 ContextOpt = Annotated[
     int, typer.Option(help="Frames stacked as one CNN/hybrid input (this and the K-1 before).")
 ]
-ThreadsOpt = Annotated[
-    int | None, typer.Option(help="torch CPU threads for dnn-* (default: the usable CPUs).")
+WeightsOpt = Annotated[
+    Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
 ]
-
-
-UnitOpt = Annotated[
-    str, typer.Option(help="Unit of the recorded steering: auto | norm ([-1, 1]) | rad | deg.")
-]
-ThresholdOpt = Annotated[
-    float | None,
-    typer.Option(help="Label threshold in the steering unit (default: the unit's own, 0.05 norm)."),
-]
-
-
-@dataclass(frozen=True)
-class LaneEvidence:
-    """The lane-evidence options of the command line (see PipelineConfig.with_lane_evidence)."""
-
-    marks: str = "none"
-    segment_angles: str | None = None
-    inner_lines: bool = False
-    track: str = "none"
-
-    def apply(self, config: PipelineConfig) -> PipelineConfig:
-        angles = None
-        if self.segment_angles is not None:
-            try:
-                lo, hi = (float(v) for v in self.segment_angles.split(","))
-            except ValueError:
-                raise ParameterError(
-                    "segment-angles", self.segment_angles, "MIN,MAX in degrees, e.g. 20,80"
-                ) from None
-            angles = (lo, hi)
-        return config.with_lane_evidence(
-            marks=self.marks, segment_angles=angles, inner_lines=self.inner_lines, track=self.track
-        )
-
-
-def pipeline_config(
-    lanes: str,
-    seed: int,
-    features: str,
-    edges: str,
-    shadow_removal: bool,
-    steering_unit: str = "auto",
-    label_threshold: float | None = None,
-    evidence: LaneEvidence | None = None,
-) -> PipelineConfig:
-    """The config of the lane and label options shared by ``evaluate`` and ``train-direction``."""
-    from qdcnn.config import PipelineConfig
-
-    base = PipelineConfig.preset(lanes, seed=seed)
-    base = base.with_labels(steering_unit=steering_unit, threshold=label_threshold)
-    base = (evidence or LaneEvidence()).apply(base)
-    return base.with_lane_options(features=features, edges=edges, shadow_removal=shadow_removal)
+ForceOpt = Annotated[bool, typer.Option(help="Redo images already done.")]
 
 
 def training_options(
@@ -158,7 +85,7 @@ def evaluate_cmd(
     ] = "all",
     folds: FoldsOpt = 5,
     gap: GapOpt = 5,
-    inner_folds: InnerOpt = 3,
+    inner_folds: InnerFoldsOpt = 3,
     lanes: LanesOpt = "udacity",
     epochs: EpochsOpt = 25,
     weights: WeightsOpt = None,
@@ -170,11 +97,11 @@ def evaluate_cmd(
     threads: ThreadsOpt = None,
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
-    steering_unit: UnitOpt = "auto",
-    label_threshold: ThresholdOpt = None,
+    steering_unit: SteeringUnitOpt = "auto",
+    label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
-    segment_angles: AnglesOpt = None,
-    inner_lines: InnerOpt2 = False,
+    segment_angles: SegmentAnglesOpt = None,
+    inner_lines: InnerLinesOpt = False,
     track: TrackOpt = "none",
     scheduler: SchedulerOpt = None,
     as_json: JsonOpt = False,
@@ -185,10 +112,10 @@ def evaluate_cmd(
     from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
 
     try:
-        evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
-        config = pipeline_config(
-            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
+        lane = LaneOptions(
+            lanes, features, edges, shadow_removal, marks, segment_angles, inner_lines, track
         )
+        config = lane.config(seed, steering_unit, label_threshold)
         spec = EvaluationSpec(
             data,
             with_head(method, head),
@@ -245,7 +172,7 @@ def train_direction_cmd(
         str, typer.Option(help="A registered method (see evaluate).")
     ] = "image-split-uu",
     lanes: LanesOpt = "udacity",
-    inner_folds: InnerOpt = 3,
+    inner_folds: InnerFoldsOpt = 3,
     gap: GapOpt = 5,
     epochs: EpochsOpt = 25,
     weights: WeightsOpt = None,
@@ -256,11 +183,11 @@ def train_direction_cmd(
     shadow_removal: ShadowRemovalOpt = True,
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
-    steering_unit: UnitOpt = "auto",
-    label_threshold: ThresholdOpt = None,
+    steering_unit: SteeringUnitOpt = "auto",
+    label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
-    segment_angles: AnglesOpt = None,
-    inner_lines: InnerOpt2 = False,
+    segment_angles: SegmentAnglesOpt = None,
+    inner_lines: InnerLinesOpt = False,
     track: TrackOpt = "none",
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
@@ -273,10 +200,10 @@ def train_direction_cmd(
     from qdcnn.experiments.train_direction import TrainDirectionSpec, train_direction
 
     try:
-        evidence = LaneEvidence(marks, segment_angles, inner_lines, track)
-        config = pipeline_config(
-            lanes, seed, features, edges, shadow_removal, steering_unit, label_threshold, evidence
+        lane = LaneOptions(
+            lanes, features, edges, shadow_removal, marks, segment_angles, inner_lines, track
         )
+        config = lane.config(seed, steering_unit, label_threshold)
         spec = TrainDirectionSpec(
             data,
             out_file,
@@ -306,20 +233,34 @@ def detect_lanes_cmd(
     model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
     method: Annotated[str, typer.Option(help="Method when no model is given.")] = "image-split-uu",
     seed: SeedOpt = 0,
-    force: Annotated[bool, typer.Option(help="Redo images already done.")] = False,
-    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
+    force: ForceOpt = False,
+    wait: WaitOpt = 0.0,
+    lanes: LanesOpt = "udacity",
+    features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
+    marks: MarksOpt = "none",
+    segment_angles: SegmentAnglesOpt = None,
+    inner_lines: InnerLinesOpt = False,
+    track: TrackOpt = "none",
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
     Without --model, the built-in model of --method is used: trained once on 300 frames of
-    each synthetic preset (track1, track2, rain), cached, and named in the output.
+    each synthetic preset (track1, track2, rain) with the lane options, cached, and named
+    in the output. A --model file carries the lane settings it was trained with.
     """
     from qdcnn.experiments.detect_lanes import DetectLanesSpec, detect_lanes
 
     try:
-        spec = DetectLanesSpec(tuple(paths), out_dir, model, method, seed, force, wait)
+        lane = LaneOptions(
+            lanes, features, edges, shadow_removal, marks, segment_angles, inner_lines, track
+        )
+        spec = DetectLanesSpec(
+            tuple(paths), out_dir, model, method, seed, force, wait, lane.config(seed)
+        )
         result = detect_lanes(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None

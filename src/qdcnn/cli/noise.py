@@ -15,25 +15,32 @@ from rich.table import Table
 from qdcnn.cli._common import (
     CacheOpt,
     CliReporter,
+    EdgesOpt,
+    EpochsOpt,
+    FeaturesOpt,
     FoldsOpt,
     GapOpt,
+    InnerFoldsOpt,
+    InnerLinesOpt,
     JsonOpt,
+    LabelThresholdOpt,
+    LaneOptions,
+    LanesOpt,
+    MarksOpt,
     QuietOpt,
     SeedOpt,
+    SegmentAnglesOpt,
+    ShadowRemovalOpt,
+    SteeringUnitOpt,
+    ThreadsOpt,
+    TrackOpt,
+    deprecated_spelling,
     emit,
     fail,
     out,
 )
-from qdcnn.cli.direction import (
-    EpochsOpt,
-    LanesOpt,
-    SchedulerOpt,
-    ThreadsOpt,
-    ThresholdOpt,
-    UnitOpt,
-    training_options,
-)
-from qdcnn.errors import ParameterError, QdcnnError
+from qdcnn.cli.direction import SchedulerOpt, training_options
+from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
     from qdcnn.experiments.circuit import CircuitInspection
@@ -43,9 +50,11 @@ DataOpt = Annotated[
     str | None,
     typer.Option(help="Direction data: udacity:PATH | carla:PATH | synthetic:PRESET[:N]."),
 ]
-MethodsOpt = Annotated[
+MethodOpt = Annotated[
     str, typer.Option(help="Comma list of uu, vqc, uu-shadow, all or registered quantum methods.")
 ]
+#: The old spelling of --method, hidden; it still works, with a note that it is deprecated.
+MethodsAlias = Annotated[str | None, typer.Option("--methods", hidden=True)]
 ChannelsOpt = Annotated[
     str,
     typer.Option(
@@ -77,7 +86,6 @@ ShotsOpt = Annotated[
     int | None, typer.Option(help="Shots per circuit at evaluation (default: exact probabilities).")
 ]
 ReadoutOpt = Annotated[float, typer.Option(help="Readout error added at every point, in [0, 1].")]
-InnerOpt = Annotated[int, typer.Option(help="Inner folds choosing hyperparameters (0: none).")]
 ShadowSetOpt = Annotated[
     Path | None,
     typer.Option(
@@ -99,7 +107,7 @@ PlotOpt = Annotated[
 
 def noise_sweep_cmd(
     data: DataOpt = None,
-    methods: MethodsOpt = "uu,vqc",
+    method: MethodOpt = "uu,vqc",
     channels: ChannelsOpt = "all",
     p: StrengthsOpt = "0:0.99:0.11",
     phase_damping: PhaseDampingOpt = "textbook",
@@ -109,7 +117,7 @@ def noise_sweep_cmd(
     readout: ReadoutOpt = 0.0,
     folds: FoldsOpt = 5,
     gap: GapOpt = 5,
-    inner_folds: InnerOpt = 3,
+    inner_folds: InnerFoldsOpt = 3,
     lanes: LanesOpt = "udacity",
     shadow_set: ShadowSetOpt = None,
     shadow_frames: ShadowFramesOpt = 24,
@@ -117,12 +125,20 @@ def noise_sweep_cmd(
     plot: PlotOpt = None,
     seed: SeedOpt = 0,
     cache: CacheOpt = True,
-    steering_unit: UnitOpt = "auto",
-    label_threshold: ThresholdOpt = None,
+    steering_unit: SteeringUnitOpt = "auto",
+    label_threshold: LabelThresholdOpt = None,
     epochs: EpochsOpt = 25,
     threads: ThreadsOpt = None,
     scheduler: SchedulerOpt = None,
+    features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
+    marks: MarksOpt = "none",
+    segment_angles: SegmentAnglesOpt = None,
+    inner_lines: InnerLinesOpt = False,
+    track: TrackOpt = "none",
     as_json: JsonOpt = False,
+    methods: MethodsAlias = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Accuracy against noise strength for each channel and method (the paper's Fig. 7).
@@ -132,21 +148,18 @@ def noise_sweep_cmd(
     Noise acts after every gate on every qubit the gate touches, as in a Qiskit Aer
     NoiseModel. uu-shadow adds the UU-dagger shadow detector's BER on images with masks.
     """
-    from qdcnn.config import PipelineConfig
     from qdcnn.experiments.noise import options
     from qdcnn.experiments.noise.runner import NoiseSweepSpec, run_noise_sweep
 
+    method = deprecated_spelling(method, methods, "--methods", "--method")
     try:
-        if lanes not in ("udacity", "paper"):
-            raise ParameterError(
-                "lanes", lanes, "'udacity' (1 smoothing pass) or 'paper' (30 passes)"
-            )
-        config = PipelineConfig.preset(lanes).with_labels(
-            steering_unit=steering_unit, threshold=label_threshold
+        lane = LaneOptions(
+            lanes, features, edges, shadow_removal, marks, segment_angles, inner_lines, track
         )
+        config = lane.config(seed, steering_unit, label_threshold)
         spec = NoiseSweepSpec(
             data,
-            options.parse_methods(methods),
+            options.parse_methods(method),
             options.parse_channels(channels, phase_damping),
             options.parse_strengths(p),
             options.parse_groupings(grouping),

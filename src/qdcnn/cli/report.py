@@ -15,9 +15,11 @@ from rich.table import Table
 from qdcnn.cli._common import (
     CacheOpt,
     CliReporter,
+    EpochsOpt,
     JsonOpt,
     QuietOpt,
     SeedOpt,
+    ThreadsOpt,
     emit,
     err,
     fail,
@@ -30,7 +32,7 @@ if TYPE_CHECKING:
     from qdcnn.experiments.reproduce import ReproduceResult, ReproduceSpec
 
 OutOpt = Annotated[Path, typer.Option("--out", help="Folder of index.html, report.json, figures.")]
-ForceOpt = Annotated[bool, typer.Option("--force", help="Overwrite an existing report folder.")]
+ForceOpt = Annotated[bool, typer.Option(help="Overwrite an existing report folder.")]
 ResumeOpt = Annotated[
     bool, typer.Option("--resume", help="Continue a run in --out, keeping finished sections.")
 ]
@@ -96,8 +98,6 @@ CnnMethodsOpt = Annotated[
         "and their twins), or a comma list."
     ),
 ]
-EpochsOpt = Annotated[int, typer.Option(help="CNN training epochs (the paper: 25).")]
-ThreadsOpt = Annotated[int | None, typer.Option(help="torch CPU threads.")]
 ShadowSetOpt = Annotated[Path | None, typer.Option(help="Shadow set DIR with images/ and masks/.")]
 MaxFramesOpt = Annotated[
     int | None, typer.Option(help="At most this many frames from each recording's start.")

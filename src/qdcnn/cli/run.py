@@ -8,7 +8,24 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, QuietOpt, emit, fail, out
+from qdcnn.cli._common import (
+    CliReporter,
+    EdgesOpt,
+    FeaturesOpt,
+    InnerLinesOpt,
+    JsonOpt,
+    LaneOptions,
+    LanesOpt,
+    MarksOpt,
+    QuietOpt,
+    SegmentAnglesOpt,
+    ShadowRemovalOpt,
+    TrackOpt,
+    WaitOpt,
+    emit,
+    fail,
+    out,
+)
 from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
@@ -32,15 +49,25 @@ def run_cmd(
     ] = None,
     chunk: Annotated[int, typer.Option(help="Frames per chunk (the unit of resume).")] = 512,
     force: Annotated[bool, typer.Option(help="Redo finished chunks too.")] = False,
-    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
+    wait: WaitOpt = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of shot sampling and of the default model.")] = 0,
+    lanes: LanesOpt = "udacity",
+    features: FeaturesOpt = "slopes",
+    edges: EdgesOpt = "grey",
+    shadow_removal: ShadowRemovalOpt = True,
+    marks: MarksOpt = "none",
+    segment_angles: SegmentAnglesOpt = None,
+    inner_lines: InnerLinesOpt = False,
+    track: TrackOpt = "none",
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
     """Per-frame direction, shadow fraction and lanes of every input; resumable after a crash.
 
     Writes DIR/<name>/frames.csv, timings.csv (measured ms), overlay.mp4 and DIR/summary.json.
-    A re-run with the same arguments skips finished chunks (--force redoes them).
+    A re-run with the same arguments skips finished chunks (--force redoes them). The lane
+    options set the pipeline of the built-in model (without --model); a --model file
+    carries the lane settings it was trained with.
     """
     from qdcnn.experiments.run import RunSpec, run
     from qdcnn.runtime.engine import RunOptions
@@ -49,7 +76,12 @@ def run_cmd(
         options = RunOptions(
             chunk_frames=chunk, smooth=smooth, overlay=video, force=force, wait=wait
         )
-        spec = RunSpec(tuple(inputs), out_dir, model, method, options, scheduler, seed)
+        lane = LaneOptions(
+            lanes, features, edges, shadow_removal, marks, segment_angles, inner_lines, track
+        )
+        spec = RunSpec(
+            tuple(inputs), out_dir, model, method, options, scheduler, seed, lane.config(seed)
+        )
         result = run(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None

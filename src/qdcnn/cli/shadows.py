@@ -13,7 +13,18 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 from rich.table import Table
 
-from qdcnn.cli._common import CliReporter, JsonOpt, QuietOpt, emit, fail, out, report_error
+from qdcnn.cli._common import (
+    CliReporter,
+    JsonOpt,
+    QuietOpt,
+    WaitOpt,
+    click,
+    deprecated_spelling,
+    emit,
+    fail,
+    out,
+    report_error,
+)
 from qdcnn.errors import QdcnnError
 
 if TYPE_CHECKING:
@@ -47,7 +58,7 @@ def detect_shadows_cmd(
     calibration_classes: ClassesOpt = 2,
     seed: SeedOpt = 0,
     force: Annotated[bool, typer.Option(help="Redo images whose mask is already done.")] = False,
-    wait: Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")] = 0.0,
+    wait: WaitOpt = 0.0,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -123,7 +134,11 @@ def score_shadows_cmd(
 
 
 def train_shadows_cmd(
-    data: Annotated[Path, typer.Option(help="Shadow set: DIR/images/* and DIR/masks/<stem>.png.")],
+    *,
+    shadow_set: Annotated[
+        Path | None,
+        typer.Option(help="Shadow set (required): DIR/images/* and DIR/masks/<stem>.png."),
+    ] = None,
     out_file: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
     features: Annotated[
         str, typer.Option(help="intensity | chromaticity | intensity,chromaticity")
@@ -136,6 +151,7 @@ def train_shadows_cmd(
     ] = True,
     seed: Annotated[int, typer.Option(help="Seed of the k-means start.")] = 0,
     as_json: JsonOpt = False,
+    data: Annotated[Path | None, typer.Option("--data", hidden=True)] = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Train a UU-dagger shadow model on images with masks.
@@ -147,9 +163,12 @@ def train_shadows_cmd(
     """
     from qdcnn.experiments.shadow_batch import ShadowTrainingSpec, train_shadows
 
+    shadow_set = deprecated_spelling(shadow_set, data, "--data", "--shadow-set")
+    if shadow_set is None:
+        raise click.exceptions.UsageError("Missing option '--shadow-set'.")
     names = tuple(f.strip() for f in features.split(",") if f.strip())
     try:
-        spec = ShadowTrainingSpec(data, out_file, names, centroids, search_threshold, seed)
+        spec = ShadowTrainingSpec(shadow_set, out_file, names, centroids, search_threshold, seed)
         result = train_shadows(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from qdcnn.direction.features import cache_dir, code_fingerprint
 from qdcnn.direction.methods import DirectionMethod, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.direction.protocol import cross_validate, majority_baseline, pooled_accuracy
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "default_direction_model",
     "default_model_path",
     "describe_default_model",
+    "direction_model",
 ]
 
 #: The lane method of the built-in model (``benchmarks/default_model_study.py``).
@@ -52,14 +53,16 @@ def default_model_path(
     method: str = DEFAULT_METHOD,
     seed: int = 0,
     data: Sequence[str] = DEFAULT_TRAINING_DATA,
+    config: PipelineConfig | None = None,
 ) -> Path:
-    """Where the cached model of ``method`` trained on ``data`` with ``seed`` lives."""
+    """Where the cached model of ``method`` trained on ``data`` with ``seed`` (and the
+    pipeline ``config``, default ``PipelineConfig(seed=seed)``) lives."""
     payload = json.dumps(
         {
             "method": method,
             "data": list(data),
             "seed": seed,
-            "config": PipelineConfig(seed=seed).to_dict(),
+            "config": (config or PipelineConfig(seed=seed)).to_dict(),
             "version": __version__,
             "code": code_fingerprint(),
         },
@@ -75,10 +78,12 @@ def default_direction_model(
     *,
     data: str | Sequence[str] = DEFAULT_TRAINING_DATA,
     use_cache: bool = True,
+    config: PipelineConfig | None = None,
     reporter: Reporter | None = None,
 ) -> DirectionModel:
     """Lane method ``method`` trained on ``data`` (dataset specs), read from the cache if there.
 
+    ``config`` is the pipeline it is trained with (default ``PipelineConfig(seed=seed)``);
     ``reporter`` is told the training's progress (a minute when nothing is cached).
 
     Raises
@@ -90,15 +95,47 @@ def default_direction_model(
     if info.inputs != "lanes" or info.grouping is None:
         raise InputError(method, "needs a trained model file (--model) for image methods")
     specs = (data,) if isinstance(data, str) else tuple(data)
-    path = default_model_path(info.name, seed, specs)
+    config = config or PipelineConfig(seed=seed)
+    path = default_model_path(info.name, seed, specs, config)
     if use_cache and path.is_file():
         try:
             return DirectionModel.load(path)
         except InputError:
             pass  # an unreadable cache entry (an interrupted disk, an older format): retrain
-    model = _train_and_score(info, specs, seed, reporter or Reporter())
+    model = _train_and_score(info, specs, seed, config, reporter or Reporter())
     if use_cache:
         model.save(path)
+    return model
+
+
+def direction_model(
+    path: Path | None,
+    method: str,
+    seed: int,
+    config: PipelineConfig,
+    note: Callable[[str], None],
+    reporter: Reporter | None = None,
+) -> DirectionModel:
+    """The model file at ``path``, or (``path`` None) the built-in model of ``method``
+    trained with ``config`` (its progress told to ``reporter``), named in a ``note``.
+
+    Raises
+    ------
+    ParameterError
+        ``path`` is given with a ``config`` other than the default one: a model file
+        carries the pipeline settings it was trained with.
+    """
+    if path is not None:
+        if config != PipelineConfig(seed=seed):
+            raise ParameterError(
+                "model",
+                str(path),
+                "a model file carries the lane settings it was trained with; give either "
+                "--model or lane options other than the defaults, not both",
+            )
+        return DirectionModel.load(path)
+    model = default_direction_model(method, seed, config=config, reporter=reporter)
+    note(f"no --model: the built-in model, {describe_default_model(model)}")
     return model
 
 
@@ -115,12 +152,15 @@ def describe_default_model(model: DirectionModel) -> str:
 
 
 def _train_and_score(
-    info: DirectionMethod, specs: tuple[str, ...], seed: int, report: Reporter
+    info: DirectionMethod,
+    specs: tuple[str, ...],
+    seed: int,
+    config: PipelineConfig,
+    report: Reporter,
 ) -> DirectionModel:
     from qdcnn.direction.lane_data import load_lane_data
 
     assert info.grouping is not None
-    config = PipelineConfig(seed=seed)
     with report.progress(len(specs) + 2, f"built-in model {info.name}: train, score") as step:
         parts = []
         for spec in specs:

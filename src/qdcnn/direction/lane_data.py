@@ -58,6 +58,14 @@ class LaneData:
         """Lane features ``(n_readable, F)`` of one grouping."""
         return self.table.features[grouping][self.keep]
 
+    def camera_notes(self) -> list[str]:
+        """What ``--lanes auto`` estimated (ROI, horizon) and its notes, one line each;
+        none for the other lane presets."""
+        camera = self.table.camera
+        if camera is None:
+            return []
+        return [f"{self.frames.name}: {line}" for line in (camera["description"], *camera["notes"])]
+
     @property
     def failures(self) -> list[Failure]:
         """Skipped rows of the recording, then unreadable frames, each with its reason."""

@@ -368,3 +368,37 @@ register(
         summary="ResNet-50 CNN (the paper's DNN, 25 epochs), classical baseline",
     )
 )
+
+
+# ---------------------------------------------------------------- classical references
+
+
+def _reference_builder(name: str) -> _Builder:
+    def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
+        from qdcnn.direction import references
+
+        estimator = getattr(references, name)()
+        return estimator, {"C": list(references.C_GRID)}
+
+    return build
+
+
+register(
+    DirectionMethod(
+        "lines-logreg",
+        "lanes",
+        _reference_builder("LinesLogisticClassifier"),
+        "logreg",
+        grouping="image-split",
+        summary="logistic regression on the fitted lines' features (classical reference)",
+    )
+)
+register(
+    DirectionMethod(
+        "hog-logreg",
+        "frames",
+        _reference_builder("HOGLogisticClassifier"),
+        "logreg",
+        summary="logistic regression on the HOG of the road band (classical reference)",
+    )
+)

@@ -75,7 +75,11 @@ def fit_with_search(
     if not searchable:
         return clone(estimator).fit(X, y), {}
     search = GridSearchCV(clone(estimator), dict(grid), cv=inner, error_score=np.nan)
-    search.fit(X, y)
+    try:
+        search.fit(X, y)
+    except ValueError:  # every candidate failed: raise the estimator's own error if it has one
+        clone(estimator).fit(X, y)
+        raise
     return search.best_estimator_, dict(search.best_params_)
 
 

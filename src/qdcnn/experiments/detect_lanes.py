@@ -21,17 +21,13 @@ from numpy.typing import NDArray
 from qdcnn._fileio import unique_stems
 from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
+from qdcnn.config import PipelineConfig
 from qdcnn.data.images import encode_image, list_named_images, read_image
 from qdcnn.data.labels import DIRECTIONS
-from qdcnn.direction.builtin import (
-    DEFAULT_METHOD,
-    DEFAULT_TRAINING_DATA,
-    default_direction_model,
-    describe_default_model,
-)
+from qdcnn.direction.builtin import DEFAULT_METHOD, DEFAULT_TRAINING_DATA, direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import DirectionModel
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.shadow_batch import note_shared_stems
 from qdcnn.runtime.manifest import ResumableBatch
 from qdcnn.runtime.reporting import Reporter
@@ -48,7 +44,11 @@ CSV_COLUMNS = ("file", "direction", "status", "p_left", "p_straight", "p_right")
 
 @dataclass(frozen=True)
 class DetectLanesSpec:
-    """What ``qdcnn detect-lanes`` runs: images, output folder, and a model or a method."""
+    """What ``qdcnn detect-lanes`` runs: images, output folder, and a model or a method.
+
+    ``config`` is the pipeline the built-in model of ``method`` is trained with when no
+    ``model`` is given (``None``: ``PipelineConfig(seed=seed)``); a model file carries its own.
+    """
 
     paths: tuple[Path, ...]
     out: Path
@@ -57,19 +57,29 @@ class DetectLanesSpec:
     seed: int = 0
     force: bool = False
     wait: float = 0.0
+    config: PipelineConfig | None = None
 
     def __post_init__(self) -> None:
         get_method(self.method)
         check_seed("seed", self.seed)
         check_bool("force", self.force)
         check_float("wait", self.wait, 0.0, 86_400.0)
+        if self.config is not None and not isinstance(self.config, PipelineConfig):
+            raise ParameterError("config", type(self.config).__name__, "a PipelineConfig")
+
+    @property
+    def pipeline(self) -> PipelineConfig:
+        """The config of the built-in model (``config``, or the default one)."""
+        return self.config or PipelineConfig(seed=self.seed)
 
     def settings(self) -> dict[str, Any]:
         """Everything that changes the outputs (hashed into the manifest's records)."""
         from qdcnn.outputs import file_identity
 
         model = None if self.model is None else file_identity(self.model, content_hash=True)
-        default = None if self.model is not None else [self.method, *DEFAULT_TRAINING_DATA]
+        default = None
+        if self.model is None:
+            default = [self.method, *DEFAULT_TRAINING_DATA, self.pipeline.to_dict()]
         return {"model": model, "default_model": default, "seed": self.seed}
 
 
@@ -131,13 +141,13 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
     """Decide a direction for every image of ``spec``, writing overlays and predictions.csv."""
     report = reporter or Reporter()
     listing = list_named_images(spec.paths)
+    if not listing.images and not listing.missing:
+        raise InputError(", ".join(map(str, spec.paths)), "no image files found")
     if spec.out.exists() and not spec.out.is_dir():
         raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
-    if spec.model is not None:
-        model = DirectionModel.load(spec.model)
-    else:
-        model = default_direction_model(spec.method, spec.seed, reporter=report)
-        report.note(f"no --model: the built-in model, {describe_default_model(model)}")
+    model = direction_model(
+        spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
+    )
     result = DetectLanesResult(model, spec.out, skipped=listing.skipped)
     note_shared_stems(listing.images, report)
     with (

@@ -89,12 +89,15 @@ def evaluate_frames(
     options: TrainingOptions | None = None,
     folds: int = 5,
     gap: int = 5,
+    inner_folds: int = 3,
     executor: Any = None,
 ) -> tuple[MethodResult, list[Failure]]:
     """Cross-validate one frame method (a CNN) on the readable frames of ``frames``.
 
     Each fold trains a fresh estimator on the training frames (its early stopping
-    validates on frames of those, never on the test block) and predicts the test block.
+    validates on frames of those, never on the test block) and predicts the test block;
+    a method with a grid (``hog-logreg``; the CNNs have none) chooses from it by the
+    inner contiguous CV of ``inner_folds`` on the training frames.
 
     Returns
     -------
@@ -115,11 +118,12 @@ def evaluate_frames(
         y,
         folds=folds,
         gap=gap,
-        inner_folds=0,
+        inner_folds=inner_folds,
         keep_estimators=True,
         executor=executor,
     )
     extra: dict[str, Any] = {
+        "chosen_hyperparameters": cv.chosen,
         "folds": folds,
         "gap": gap,
         "epochs": opts.epochs,
@@ -285,11 +289,9 @@ def _evaluate_all(
         if lane_methods:
             lanes = _lane_data(spec, frames, lane_methods, report)
             _add_failures(result, lanes.table.failures, report)
-            if lanes.table.camera is not None:
-                result.camera = lanes.table.camera
-                report.note(f"{frames.name}: {lanes.table.camera['description']}")
-                for note in lanes.table.camera["notes"]:
-                    report.note(f"{frames.name}: {note}")
+            result.camera = lanes.table.camera
+            for note in lanes.camera_notes():
+                report.note(note)
             for m in lane_methods:
                 res = _evaluate_lane_method(spec, m, lanes, executor)
                 res.extra["labels"] = result.labels
@@ -305,6 +307,7 @@ def _evaluate_all(
                 options=spec.training,
                 folds=spec.folds,
                 gap=spec.gap,
+                inner_folds=spec.inner_folds,
                 executor=executor,
             )
             _add_failures(result, failures, report)

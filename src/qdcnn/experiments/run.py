@@ -16,14 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from qdcnn._validation import check_seed
+from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import load_frameset, parse_spec
-from qdcnn.direction.builtin import (
-    DEFAULT_METHOD,
-    default_direction_model,
-    describe_default_model,
-)
+from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
 from qdcnn.direction.methods import get_method
-from qdcnn.direction.model import DirectionModel
+from qdcnn.errors import ParameterError
 from qdcnn.runtime.engine import (
     InputResult,
     Progress,
@@ -60,6 +57,9 @@ class RunSpec:
         ``None`` (this process), ``local:N`` or ``tcp://HOST:PORT`` (the ``dask`` extra).
     seed : int
         Seed of the shot sampling and of the default model.
+    config : PipelineConfig or None
+        The pipeline the built-in model is trained with when no ``model`` is given
+        (``None``: ``PipelineConfig(seed=seed)``); a model file carries its own.
     """
 
     inputs: tuple[str, ...]
@@ -69,10 +69,18 @@ class RunSpec:
     options: RunOptions = field(default_factory=RunOptions)
     scheduler: str | None = None
     seed: int = 0
+    config: PipelineConfig | None = None
 
     def __post_init__(self) -> None:
         get_method(self.method)
         check_seed("seed", self.seed)
+        if self.config is not None and not isinstance(self.config, PipelineConfig):
+            raise ParameterError("config", type(self.config).__name__, "a PipelineConfig")
+
+    @property
+    def pipeline(self) -> PipelineConfig:
+        """The config of the built-in model (``config``, or the default one)."""
+        return self.config or PipelineConfig(seed=self.seed)
 
 
 def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
@@ -83,11 +91,9 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
     resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
-    if spec.model is not None:
-        model = DirectionModel.load(spec.model)
-    else:
-        model = default_direction_model(spec.method, spec.seed, reporter=report)
-        report.note(f"no --model: the built-in model, {describe_default_model(model)}")
+    model = direction_model(
+        spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
+    )
     processor = LaneDirectionProcessor(model, seed=spec.seed)
     with ExitStack() as stack:
         executor = stack.enter_context(Executor(spec.scheduler)) if spec.scheduler else None

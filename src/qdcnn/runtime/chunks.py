@@ -190,11 +190,10 @@ def _fmt(value: float | None, digits: int = 6) -> str:
     return "" if value is None else f"{value:.{digits}f}"
 
 
-def csv_header(processor: FrameProcessor, smooth: int) -> list[str]:
-    """Columns of ``frames.csv`` for this processor and smoothing."""
-    cols = ["frame", "timestamp", "direction"]
-    if smooth > 1:
-        cols.append("direction_raw")
+def csv_header(processor: FrameProcessor) -> list[str]:
+    """Columns of ``frames.csv`` for this processor, the same with and without smoothing
+    (``direction_raw``, the frame's own decision, equals ``direction`` without a vote)."""
+    cols = ["frame", "timestamp", "direction", "direction_raw"]
     cols += [f"p_{c}" for c in processor.classes or ()]
     return [*cols, "shadow_fraction", "lane_status"]
 
@@ -273,7 +272,7 @@ class _ChunkState:
             decision = majority_vote(self.history) if outcome is not None else None
             if error is not None:
                 self.bad.append((item.index, error))
-            self.rows.writerow(_row(item, outcome, decision, self.task.smooth, self.n_classes))
+            self.rows.writerow(_row(item, outcome, decision, self.n_classes))
             if decision is not None:
                 self.directions[decision] += 1
             overlay_ms = self._draw(item, outcome, decision)
@@ -344,11 +343,10 @@ def _process_one(
 
 
 def _row(
-    item: _Frame, outcome: FrameOutcome | None, decision: str | None, smooth: int, n_classes: int
+    item: _Frame, outcome: FrameOutcome | None, decision: str | None, n_classes: int
 ) -> list[Any]:
-    row: list[Any] = [item.index, _fmt(item.timestamp), decision or ""]
-    if smooth > 1:
-        row.append("" if outcome is None else outcome.direction or "")
+    raw = "" if outcome is None else outcome.direction or ""
+    row: list[Any] = [item.index, _fmt(item.timestamp), decision or "", raw]
     probs = outcome.probabilities if outcome is not None else None
     row += [_fmt(p) for p in probs] if probs is not None else [""] * n_classes
     if outcome is None:

@@ -20,7 +20,8 @@ index, never per chunk), and the one value that is not, processing time, is writ
 
 ``frames.csv`` columns (csv module, rows in frame order): ``frame``, ``timestamp`` (seconds,
 empty for image folders), ``direction`` (the decision; with ``smooth=K`` the majority vote
-over the frame and the K - 1 frames before it), ``direction_raw`` (only with smoothing),
+over the frame and the K - 1 frames before it), ``direction_raw`` (the frame's own decision
+before the vote; always present, equal to ``direction`` without smoothing),
 ``p_<class>`` per class when the processor gives probabilities, ``shadow_fraction``,
 ``lane_status`` (or ``error`` for a frame that could not be decoded or processed).
 ``timings.csv``: ``frame``, ``process_ms`` (for a processor that works in batches, the
@@ -344,7 +345,7 @@ def _plan(
 ) -> _Plan:
     """The chunks of ``inp`` and which of them are still to do (none when it is finished)."""
     result = InputResult(inp.name, inp.describe(), inp.kind)
-    header = csv_header(processor, opts.smooth)
+    header = csv_header(processor)
     decoder = check_decoder(opts.decoder) if isinstance(inp, VideoInput) else "images"
     plan = _Plan(inp, result, InputLedger(inp.name, {}, ""), header, 0, [], [])
     try:

@@ -362,6 +362,8 @@ def _direction_inputs(
             )
         keep &= lanes.keep
         failures = lanes.failures
+        for note in lanes.camera_notes():
+            report.note(note)
     images = None
     if any(t.grouping is None for t in targets):
         images, readable, unreadable = stack_images(frames)
