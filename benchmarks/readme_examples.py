@@ -53,6 +53,7 @@ README = REPO / "README.md"
 DISPLAY_ROOT = "/tmp/examples"
 COLUMNS = "100"
 COMMAND_TIMEOUT_S = 900
+MAX_INSERTED = 3  # new lines (a note, say) recognised as such before a line README shows
 
 FENCE_OPEN = re.compile(r"^(?P<indent>\s*)```console\s*$")
 FENCE_CLOSE = re.compile(r"^\s*```\s*$")
@@ -240,6 +241,7 @@ class Comparison:
     """Which actual line each expected line stands for, and what differs."""
 
     pairs: dict[int, int]  # expected index -> actual index (literal lines only)
+    inserted: dict[int, list[int]]  # expected index -> new actual lines just before it
     problems: list[str]
     aligned: bool  # False when the elided shape no longer fits the output
 
@@ -248,6 +250,7 @@ def compare(expected: list[str], actual: list[str]) -> Comparison:
     """Match README's expected lines (with ``...`` gaps) against a command's actual output."""
     cells = timing_cells(actual)
     pairs: dict[int, int] = {}
+    inserted: dict[int, list[int]] = {}
     problems: list[str] = []
     pos = 0
     gap = False
@@ -258,14 +261,29 @@ def compare(expected: list[str], actual: list[str]) -> Comparison:
         j = _find(want, actual, cells, pos, gap)
         if j is None:
             problems.append(f"expected line not in the output: {want.strip()}")
-            return Comparison(pairs, problems, aligned=False)
+            return Comparison(pairs, inserted, problems, aligned=False)
+        later = None if gap else _inserted_before(want, actual, cells, j)
+        if later is not None:
+            inserted[i] = list(range(j, later))
+            problems.append(f"new output line(s) before '{want.strip()}': {actual[j].strip()}")
+            j = later
         if not line_matches(want, actual[j], cells[j]):
             problems.append(f"README: {want.strip()}\n      now: {actual[j].strip()}")
         pairs[i] = j
         pos, gap = j + 1, False
     if not gap and pos < len(actual):
         problems.append(f"{len(actual) - pos} more output line(s): {actual[pos].strip()} ...")
-    return Comparison(pairs, problems, aligned=True)
+    return Comparison(pairs, inserted, problems, aligned=True)
+
+
+def _inserted_before(want: str, actual: list[str], cells: list[set[int]], j: int) -> int | None:
+    """Where ``want`` is found a few lines after ``j`` when ``actual[j]`` is not it (new lines)."""
+    if line_matches(want, actual[j], cells[j]):
+        return None
+    for k in range(j + 1, min(j + 1 + MAX_INSERTED, len(actual))):
+        if line_matches(want, actual[k], cells[k]):
+            return k
+    return None
 
 
 def _find(want: str, actual: list[str], cells: list[set[int]], pos: int, gap: bool) -> int | None:
@@ -285,7 +303,8 @@ def updated_output(expected: list[str], actual: list[str]) -> tuple[list[str], b
     """README's lines with the stale ones replaced; False when the whole output was replaced."""
     result = compare(expected, actual)
     has_gap = any(_is_ellipsis(line) for line in expected)
-    if not result.aligned or (not has_gap and len(expected) != len(actual)):
+    n_inserted = sum(len(lines) for lines in result.inserted.values())
+    if not result.aligned or (not has_gap and len(expected) + n_inserted != len(actual)):
         return list(actual), False
     cells = timing_cells(actual)
     pairs = result.pairs
@@ -293,7 +312,10 @@ def updated_output(expected: list[str], actual: list[str]) -> tuple[list[str], b
     for table in _tables(expected):
         if stale & table:  # the whole table from one run, so its columns line up
             stale |= table & result.pairs.keys()
-    new = [actual[result.pairs[i]] if i in stale else line for i, line in enumerate(expected)]
+    new = []
+    for i, line in enumerate(expected):
+        new += [actual[j] for j in result.inserted.get(i, [])]
+        new.append(actual[pairs[i]] if i in stale else line)
     if has_gap and result.pairs and max(result.pairs.values()) + 1 < len(actual):
         if not _is_ellipsis(new[-1]):
             new.append("...")  # the output goes on past README's last line

@@ -106,6 +106,8 @@ def test_update_keeps_elisions_and_lines_that_still_match() -> None:
     new, kept_shape = examples.updated_output(expected, actual)
     assert kept_shape
     assert new == ["head 1.0 s", "...", "│ row │ 0.6 │", "..."]
+    new, kept_shape = examples.updated_output(["x", "a 1", "b"], ["note: new", "x", "a 2", "b"])
+    assert (new, kept_shape) == (["note: new", "x", "a 2", "b"], True)
     new, kept_shape = examples.updated_output(["a"], ["b", "c"])
     assert (new, kept_shape) == (["b", "c"], False)
 
