@@ -22,12 +22,12 @@ from qdcnn.config import PipelineConfig
 from qdcnn.direction.methods import DirectionMethod, register, unregister
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.evaluate import EvaluationSpec, run_evaluation
-from qdcnn.experiments.report import named_options_config
 from qdcnn.experiments.reproduce import (
     PAGE_ORDER,
     TINY,
     ReproduceSpec,
     Section,
+    named_options_config,
     parse_data_option,
     run_reproduce,
 )

@@ -15,7 +15,6 @@ they run lives below: :mod:`qdcnn.direction` (methods, protocol, models) and
 ``noise``              ``qdcnn noise-sweep``
 ``circuit``            ``qdcnn circuit``
 ``reproduce``          ``qdcnn reproduce`` (and ``qdcnn demo``)
-``report``             the report's HTML page
 ``shadow_bench``       ``qdcnn bench shadows``
 ``pipeline_bench``     ``qdcnn bench pipeline``
 =====================  ============================================================

@@ -359,7 +359,6 @@ def group_segments(
     """
     if method not in GROUPINGS:
         raise ParameterError("method", method, "'image-split', 'kmeans' or 'spectral'")
-    names = feature_names(extra_features)
     seg, h, w = _checked_segments(segments, shape, merge_tolerance)
     labels = _left_right_labels(seg, method, seed, w)
     if inner_lines:
@@ -375,7 +374,7 @@ def group_segments(
         lines=lines,
         labels=labels.astype(np.int64),
         method=method,
-        feature_names=names,
+        feature_names=feature_names(extra_features),
         shape=(h, w),
         middle_line=_middle_line(lines),
         segments=seg,
