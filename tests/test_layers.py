@@ -31,6 +31,7 @@ RANK = {
     "outputs": 2,
     "persistence": 2,
     "batch": 2,
+    "_closing": 1,
     "_fileio": 1,
     "_lazy": 1,
     "_optional": 1,

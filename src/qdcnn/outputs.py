@@ -39,10 +39,10 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
 from typing import Any, Literal
 
 from qdcnn import __version__
+from qdcnn._closing import ClosesOnExit
 from qdcnn._fileio import temporary_sibling
 from qdcnn.errors import InputError, ParameterError
 
@@ -169,7 +169,7 @@ def _split(relpath: str | os.PathLike[str]) -> list[str]:
     return parts
 
 
-class OutputFolder:
+class OutputFolder(ClosesOnExit):
     """An output folder opened for writing by this process alone.
 
     Parameters
@@ -257,14 +257,6 @@ class OutputFolder:
 
     def __enter__(self) -> OutputFolder:
         return self.open()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     @property
     def is_open(self) -> bool:

@@ -12,7 +12,7 @@ the blurred coverage ``>= 0.5``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -793,18 +793,30 @@ def _in_view(
     return np.flatnonzero(ok)
 
 
+def _standing_in_view(
+    view: _View,
+    objects: dict[str, FloatArray],
+    far: float,
+    reach: Callable[[dict[str, FloatArray]], float | FloatArray],
+) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
+    """Indices of the scenery ``objects`` (columns ``x``, ``z``; maybe none) that
+    :func:`_in_view` keeps, reaching ``reach(objects)`` metres sideways, and their camera
+    x and depth."""
+    if not (objects and objects["x"].size):
+        return np.zeros(0, np.intp), np.zeros(0), np.zeros(0)
+    xc, zc = view.to_camera(objects["x"], objects["z"])
+    i = _in_view(view, xc, zc, far, reach(objects))
+    return i, xc[i], zc[i]
+
+
 def _tree_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     """Trunk and canopy polygons of the trees in view nearer than ``far``."""
     t = take.scenery.trees
     cam = view.cam
-    if not (t and t["x"].size):
-        return []
-    xc, zc = view.to_camera(t["x"], t["z"])
-    r = t["radius"]
-    i = _in_view(view, xc, zc, far, 1.7 * r)
+    i, x, z = _standing_in_view(view, t, far, lambda trees: 1.7 * trees["radius"])
     if not i.size:
         return []
-    x, z = xc[i], zc[i]
+    r = t["radius"]
     w2 = t["trunk_w"][i] / 2
     ub_l, ub_r = cam.column(x - w2, z), cam.column(x + w2, z)
     vb, vt = cam.row(z), cam.row(z, t["trunk_top"][i])
@@ -842,13 +854,10 @@ def _pole_jobs(take: Take, view: _View, far: float, limit: float) -> list[_Job]:
     """Pole and arm segments of the poles in view nearer than ``far``."""
     p = take.scenery.poles
     cam = view.cam
-    if not (p and p["x"].size):
-        return []
-    xc, zc = view.to_camera(p["x"], p["z"])
-    i = _in_view(view, xc, zc, far, 3.0)
+    i, x, z = _standing_in_view(view, p, far, lambda _: 3.0)
     if not i.size:
         return []
-    x, z, hgt = xc[i], zc[i], p["height"][i]
+    hgt = p["height"][i]
     base = view.project(x, z)
     top = view.project(x, z, hgt)
     a = p["arm_dir"][i]

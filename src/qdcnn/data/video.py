@@ -38,13 +38,13 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from types import TracebackType
 from typing import Any, Literal
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._closing import ClosesOnExit, FinishesOnExit
 from qdcnn._fileio import temporary_sibling
 from qdcnn._optional import has_module, require
 from qdcnn._validation import has_shape
@@ -213,7 +213,7 @@ def _first_line(exc: BaseException) -> str:
     return text[:200] or type(exc).__name__
 
 
-class VideoReader:
+class VideoReader(ClosesOnExit):
     """An open video file: its :attr:`info` and frames from any index.
 
     Parameters
@@ -289,17 +289,6 @@ class VideoReader:
 
     def close(self) -> None:
         self._backend.close()
-
-    def __enter__(self) -> VideoReader:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 @dataclass
@@ -667,7 +656,7 @@ def _even_padding(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return np.asarray(padded, dtype=np.uint8)
 
 
-class VideoWriter:
+class VideoWriter(FinishesOnExit):
     """Write RGB frames one at a time to an mp4 (or mov, mkv, avi) file, or to bytes.
 
     Parameters
@@ -893,20 +882,6 @@ class VideoWriter:
         if self._tmp is not None:
             self._tmp.unlink(missing_ok=True)
         self._container = self._cv_writer = None
-
-    def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
 
 def concat_mp4(

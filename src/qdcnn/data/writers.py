@@ -24,6 +24,7 @@ from typing import Literal, TextIO
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn._closing import FinishesOnExit
 from qdcnn._fileio import temporary_sibling
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.data.synthetic import RoadScene
@@ -89,7 +90,7 @@ class _TextSink:
         self._tmp.unlink(missing_ok=True)
 
 
-class SceneSink(ABC):
+class SceneSink(FinishesOnExit, ABC):
     """Base of the streaming writers: ``add`` scenes one by one, then ``close``.
 
     Used as a context manager, a sink closes on success and discards its unfinished
@@ -107,15 +108,6 @@ class SceneSink(ABC):
     def abort(self) -> None:
         """Stop after an error; the default keeps what was written."""
         return None
-
-    def __enter__(self) -> SceneSink:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, *_: object) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
 
 
 class UdacityWriter(SceneSink):

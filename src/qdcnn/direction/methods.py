@@ -34,6 +34,7 @@ __all__ = [
     "GROUPINGS",
     "DirectionMethod",
     "TrainingOptions",
+    "check_fit_settings",
     "get_method",
     "method_names",
     "register",
@@ -79,6 +80,20 @@ class TrainingOptions:
         if self.threads is not None:
             check_int("threads", self.threads, 1, 1024)
         check_int("context", self.context, 1, 64)
+
+
+def check_fit_settings(gap: int, inner_folds: int, training: TrainingOptions) -> None:
+    """Check what fitting a method on recorded frames takes: the ``gap`` of frames left out
+    around test folds, the ``inner_folds`` of the hyper-parameter search (0: none) and that
+    the initial weights file, if any, exists."""
+    from qdcnn._validation import check_int
+    from qdcnn.data.images import require_file
+
+    check_int("gap", gap, 0, 10_000)
+    if inner_folds != 0:
+        check_int("inner_folds", inner_folds, 2, 100)
+    if training.weights is not None:
+        require_file(training.weights, "weights file")
 
 
 _Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, _Grid]]

@@ -6,10 +6,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
-from qdcnn.direction.methods import TrainingOptions, get_method
+from qdcnn.direction.methods import TrainingOptions, check_fit_settings, get_method
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.runtime.reporting import Reporter
 
@@ -31,13 +30,7 @@ class TrainDirectionSpec:
 
     def __post_init__(self) -> None:
         get_method(self.method)
-        check_int("gap", self.gap, 0, 10_000)
-        if self.inner_folds != 0:
-            check_int("inner_folds", self.inner_folds, 2, 100)
-        if self.training.weights is not None:
-            from qdcnn.data.images import require_file
-
-            require_file(self.training.weights, "weights file")
+        check_fit_settings(self.gap, self.inner_folds, self.training)
 
 
 @dataclass
@@ -71,11 +64,11 @@ def train_direction(
 
     report = reporter or Reporter()
     method = get_method(spec.method)
+    frames = load_frameset(
+        spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
+    )
     if method.inputs == "lanes":
         assert method.grouping is not None
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
         with report.progress(len(frames), f"lane features ({frames.name})") as advance:
             lanes = load_lane_data(
                 frames, spec.config, (method.grouping,), use_cache=spec.use_cache, on_frame=advance
@@ -83,9 +76,6 @@ def train_direction(
         inputs: Any = lanes.features(method.grouping)
         y, failures = lanes.y, lanes.failures
     else:
-        frames = load_frameset(
-            spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
-        )
         images, readable, unreadable = stack_images(frames)
         inputs, y = images[readable], frames.labels(spec.config.labels)[readable]
         failures = [Failure(p.source, str(p)) for p in frames.problems] + unreadable

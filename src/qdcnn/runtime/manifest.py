@@ -22,9 +22,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
+from qdcnn._closing import ClosesOnExit
 from qdcnn.outputs import ManifestEntry, OutputFolder, OutputRecord, config_hash, file_identity
 
 __all__ = [
@@ -118,7 +118,7 @@ class InputLedger:
             folder.remove(rel)
 
 
-class ResumableBatch:
+class ResumableBatch(ClosesOnExit):
     """One run's view of an output folder and its manifest.
 
     Parameters
@@ -145,12 +145,8 @@ class ResumableBatch:
         self.folder.open()
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def close(self) -> None:
+        """Release the output folder (its lock)."""
         self.folder.close()
 
     def finished(self, key: str, source: Path) -> dict[str, Any] | None:

@@ -39,9 +39,9 @@ import re
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
-from types import TracebackType
 from typing import Any, Generic, TypeVar
 
+from qdcnn._closing import ClosesOnExit
 from qdcnn._optional import require
 from qdcnn.errors import InputError, ParameterError, QdcnnError
 
@@ -161,7 +161,7 @@ def _limit_threads() -> None:
     threadpool_limits(1)
 
 
-class Executor:
+class Executor(ClosesOnExit):
     """Where tasks run; see the module docstring.
 
     Parameters
@@ -336,17 +336,6 @@ class Executor:
         if self._cluster is not None:
             self._cluster.close()
             self._cluster = None
-
-    def __enter__(self) -> Executor:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def describe(self) -> dict[str, Any]:
         return {"scheduler": self.spec, "kind": self.kind, "workers": self.workers}
