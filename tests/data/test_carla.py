@@ -166,3 +166,16 @@ def test_txt_without_images(tmp_path: Path) -> None:
     with pytest.raises(InputError) as info:
         load_carla(tmp_path)
     assert str(info.value) == f"{tmp_path.resolve() / 'images'}: no image files"
+
+
+def test_an_image_path_outside_the_recording_is_refused(tmp_path: Path) -> None:
+    rec_dir = tmp_path / "rec"
+    frames = touch_images(rec_dir / "images", ["a.png"])
+    outside = touch_images(tmp_path / "elsewhere", ["x.png"])[0]
+    lines = ["filename,angle", "a.png,0.1", "../elsewhere/x.png,0.2", f"{outside},0.3"]
+    (rec_dir / "labels.csv").write_text("\n".join(lines) + "\n")
+    rec = load_carla(rec_dir)
+    assert rec.frames == frames
+    problems = [str(p) for p in rec.problems]
+    assert len(problems) == 2
+    assert all(f"lies outside the recording folder {rec_dir.resolve()}" in p for p in problems)

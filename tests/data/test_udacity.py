@@ -121,24 +121,31 @@ def test_posix_absolute_paths_resolve_by_name(tmp_path: Path) -> None:
     assert rec.frames == [tmp_path.resolve() / "IMG" / n for n in names]
 
 
-def test_existing_absolute_and_relative_paths_outside_img(tmp_path: Path) -> None:
+def test_paths_inside_the_recording_resolve_and_paths_outside_it_are_refused(
+    tmp_path: Path,
+) -> None:
     rec_dir = tmp_path / "rec"
     other = tmp_path / "elsewhere" / "frame_a.jpg"
     other.parent.mkdir()
     other.write_bytes(b"")
     (rec_dir / "sub").mkdir(parents=True)
     (rec_dir / "sub" / "frame_b.jpg").write_bytes(b"")
-    write_recording(
-        rec_dir,
-        [row(str(other), "0.1"), row("sub\\frame_b.jpg", "0.2"), row("IMG/frame_c.jpg", "0.3")],
-        images=["frame_c.jpg"],
-    )
+    rows = [
+        row(str(other), "0.1"),
+        row("sub\\frame_b.jpg", "0.2"),
+        row("IMG/frame_c.jpg", "0.3"),
+        row("../elsewhere/frame_a.jpg", "0.4"),
+    ]
+    write_recording(rec_dir, rows, images=["frame_c.jpg"])
     rec = load_udacity(rec_dir)
     assert rec.frames == [
-        other.resolve(),
         (rec_dir / "sub" / "frame_b.jpg").resolve(),
         rec_dir.resolve() / "IMG" / "frame_c.jpg",
     ]
+    outside = f"lies outside the recording folder {rec_dir.resolve()}"
+    problems = [str(p) for p in rec.problems]
+    assert len(problems) == 2 and all(outside in p for p in problems), problems
+    assert f"'{other}'" in problems[0] and "'../elsewhere/frame_a.jpg'" in problems[1]
 
 
 def test_case_only_mismatch_of_windows_name(tmp_path: Path) -> None:

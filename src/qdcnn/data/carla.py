@@ -124,6 +124,10 @@ def _is_frame_number(text: str) -> bool:
     return text.isascii() and text.isdigit() and len(text) <= 40
 
 
+class _OutsideRecording(Exception):
+    """A row's image path leads out of the recording folder (the message is the folder)."""
+
+
 class _ImageLookup:
     """Match a CSV's image entry to a file: by name, by stem, by frame number, or as a path."""
 
@@ -147,8 +151,10 @@ class _ImageLookup:
         if PureWindowsPath(text).drive:
             return None
         given = Path(PurePosixPath(text.replace("\\", "/")))
-        candidate = given if given.is_absolute() else self.csv_dir / given
-        return candidate.resolve() if is_regular_file(candidate) else None
+        candidate = (given if given.is_absolute() else self.csv_dir / given).resolve()
+        if not candidate.is_relative_to(self.csv_dir.resolve()):
+            raise _OutsideRecording(display_path(self.csv_dir))
+        return candidate if is_regular_file(candidate) else None
 
 
 @dataclass
@@ -247,9 +253,14 @@ def _read_csv_row(
         if not math.isfinite(stamp):
             table.skip(row, f"timestamp '{stamp_text[:64]}' is not a number")
             return
-    image = lookup.find(fields[columns.image])
+    shown = fields[columns.image].strip()
+    try:
+        image = lookup.find(fields[columns.image])
+    except _OutsideRecording as exc:
+        table.skip(row, f"image '{shown}' lies outside the recording folder {exc}")
+        return
     if image is None:
-        table.skip(row, f"image '{fields[columns.image].strip()}' not found")
+        table.skip(row, f"image '{shown}' not found")
         return
     table.add(LabelRow(row, image, value, text, stamp=stamp))
 

@@ -49,20 +49,33 @@ class _ImageIndex:
         self.folded = {n.lower(): n for n in names}
 
     def resolve(self, raw: str) -> Path | None:
+        """The image a row names, or ``None`` (missing, or outside the recording)."""
+        return self.locate(raw)[0]
+
+    def locate(self, raw: str) -> tuple[Path | None, str]:
+        """The image a row names (by file name in ``IMG/`` first), or ``None`` and why.
+
+        A path that is not found by name must lie inside the recording folder once links
+        are resolved: a row never reads a file from elsewhere on the machine.
+        """
         text = raw.strip()
         if not text:
-            return None
+            return None, "(empty)"
         windows = PureWindowsPath(text)
-        name = windows.name  # splits on both "\" and "/"
+        name = windows.name  # splits on both "\\" and "/"
         if name in self.exact:
-            return self.img_dir / name
+            return self.img_dir / name, ""
         if name.lower() in self.folded:
-            return self.img_dir / self.folded[name.lower()]
+            return self.img_dir / self.folded[name.lower()], ""
+        missing = f"'{text}' not found in {self.shown_dir}"
         if windows.drive or text.startswith("\\"):
-            return None  # an absolute Windows path cannot exist here
+            return None, missing  # an absolute Windows path cannot exist here
         given = Path(PurePosixPath(text.replace("\\", "/")))
-        candidate = given if given.is_absolute() else self.csv_dir / given
-        return candidate.resolve() if is_regular_file(candidate) else None
+        candidate = (given if given.is_absolute() else self.csv_dir / given).resolve()
+        if not candidate.is_relative_to(self.csv_dir):
+            where = display_path(self.csv_dir)
+            return None, f"'{text}' lies outside the recording folder {where}"
+        return (candidate, "") if is_regular_file(candidate) else (None, missing)
 
 
 def _timestamp(path: Path) -> float | None:
@@ -218,13 +231,9 @@ def _read_rows(csv_file: Path, index: _ImageIndex, table: LabelRows) -> int:
                 if value is None:
                     table.skip(row, reason or "no steering value")
                     continue
-                centre_raw = fields[columns["center"]].strip()
-                centre = index.resolve(centre_raw)
+                centre, why = index.locate(fields[columns["center"]])
                 if centre is None:
-                    what = f"'{centre_raw}'" if centre_raw else "(empty)"
-                    table.skip(
-                        row, f"centre image {what} not found in {display_path(index.img_dir)}"
-                    )
+                    table.skip(row, f"centre image {why}")
                     continue
                 left = index.resolve(fields[columns["left"]]) if "left" in columns else None
                 right = index.resolve(fields[columns["right"]]) if "right" in columns else None
