@@ -8,7 +8,12 @@ from typing import Any
 
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
-from qdcnn.direction.methods import TrainingOptions, check_fit_settings, get_method
+from qdcnn.direction.methods import (
+    TrainingOptions,
+    check_fit_settings,
+    check_inner_search,
+    get_method,
+)
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.runtime.reporting import Reporter
 
@@ -67,6 +72,8 @@ def train_direction(
     frames = load_frameset(
         spec.data, seed=spec.config.seed, steering_unit=spec.config.labels.steering_unit
     )
+    if method.estimator(spec.config, spec.training)[1]:  # a grid to search: before any work
+        check_inner_search(len(frames), spec.inner_folds, spec.gap)
     if method.inputs == "lanes":
         assert method.grouping is not None
         with report.progress(len(frames), f"lane features ({frames.name})") as advance:
