@@ -282,3 +282,12 @@ def test_train_direction_refuses_an_inner_search_that_cannot_run(
     assert res.stderr.startswith("error: ") and len(res.stderr.splitlines()) == 1
     assert all(name in res.stderr for name in names), res.stderr
     assert not out.exists()
+
+
+def test_equal_segment_angles_are_refused_in_the_user_s_words(tmp_path: Any) -> None:
+    out = tmp_path / "m.safetensors"
+    args = ["train-direction", "--data", "synthetic:track2:60", "--out", str(out)]
+    res = runner.invoke(app, [*args, "--segment-angles", "45,45"])
+    assert res.exit_code == 2 and len(res.stderr.splitlines()) == 1
+    assert "segment_angles='45,45' is invalid: LO,HI degrees" in res.stderr
+    assert "no row has both slopes" not in res.stderr and not out.exists()
