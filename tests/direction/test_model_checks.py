@@ -127,3 +127,21 @@ def test_commands_refuse_a_tampered_model_before_reading_input(
     assert "bad.safetensors" in res.stderr and f"'{field}'" in res.stderr
     assert res.stdout == ""
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("method", "param", "value"),
+    [
+        ("image-split-uu", "shots", -5),
+        ("image-split-uu", "straight_margin", 7.0),
+        ("kmeans-vqc", "ansatz_reps", -1),
+    ],
+)
+def test_out_of_range_parameters_are_refused_on_load(
+    models: dict[str, Path], tmp_path: Path, method: str, param: str, value: Any
+) -> None:
+    header, arrays = load_model(models[method], KIND, {2})
+    meta = {**header.meta, "params": {**header.meta["params"], param: value}}
+    path = save_model(tmp_path / "bad.safetensors", KIND, 2, meta, arrays)
+    with pytest.raises(InputError, match=f"model settings are invalid: {param}="):
+        DirectionModel.load(path)

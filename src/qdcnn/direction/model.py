@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import DIRECTIONS, class_balance
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method
-from qdcnn.direction.model_checks import check_fitted_attributes
+from qdcnn.direction.model_checks import check_estimator_params, check_fitted_attributes
 from qdcnn.direction.protocol import fit_with_search
 from qdcnn.errors import InputError, ParameterError, QdcnnError
 from qdcnn.persistence import (
@@ -141,6 +141,7 @@ class DirectionModel:
             config = PipelineConfig.from_dict(meta["config"])
             estimator, _ = method.estimator(config)
             estimator.set_params(**_params_from_json(meta["params"]))
+            check_estimator_params(estimator)
         except KeyError as exc:
             raise InputError(path, f"model header lacks {exc}") from None
         except (QdcnnError, TypeError, ValueError) as exc:

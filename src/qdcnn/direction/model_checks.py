@@ -19,7 +19,7 @@ import numpy as np
 
 from qdcnn.errors import InputError
 
-__all__ = ["check_fitted_attributes"]
+__all__ = ["check_estimator_params", "check_fitted_attributes"]
 
 #: A rule returns what is wrong with the value (``None`` when it is fine).
 _Rule = Callable[[Any, Any], "str | None"]
@@ -41,6 +41,22 @@ def check_fitted_attributes(estimator: Any, source: str | os.PathLike[str]) -> N
         problem = None if rule is None else rule(estimator, getattr(estimator, name))
         if problem is not None:
             raise InputError(source, f"fitted attribute {name!r} {problem} (a damaged model file)")
+
+
+def check_estimator_params(estimator: Any) -> None:
+    """Run the estimator's own parameter checks (those its ``fit`` runs), if it has them.
+
+    A model file's parameters are set with ``set_params``, which checks nothing; an
+    out-of-range value (``shots=-5``) would otherwise fail on every input.
+
+    Raises
+    ------
+    ParameterError
+        The estimator's own message naming the parameter.
+    """
+    check = getattr(estimator, "_check_params", None)
+    if callable(check):
+        check()
 
 
 def _is_int(value: Any) -> bool:
@@ -86,7 +102,7 @@ def _array(
     if value.dtype.kind not in "iuf":
         return f"holds {value.dtype} values, not numbers"
     if size is not None and value.shape[-1] != size:
-        return f"has shape {value.shape}, expected {size} columns"
+        return f"has shape {value.shape}, expected {size} values along its last axis"
     values = value[~np.isnan(value)] if allow_nan and value.dtype.kind == "f" else value
     if not np.all(np.isfinite(values)):
         return "holds NaN or infinite values"
