@@ -275,11 +275,12 @@ class LaneConfig:
         check_choice("lanes.edge_channels", self.edge_channels, ("grey", "rgb"))
         check_float("lanes.min_segment_angle", self.min_segment_angle, 0.0, 90.0)
         check_float("lanes.max_segment_angle", self.max_segment_angle, 0.0, 90.0)
-        if self.max_segment_angle < self.min_segment_angle:
+        if self.max_segment_angle <= self.min_segment_angle:
             raise ParameterError(
                 "lanes.max_segment_angle",
                 self.max_segment_angle,
-                f"at least min_segment_angle={self.min_segment_angle}",
+                f"greater than min_segment_angle={self.min_segment_angle} (an empty range "
+                "keeps no Hough segment, so no lane line is found)",
             )
         if self.work_width is not None:
             check_int("lanes.work_width", self.work_width, 16, 8192)
@@ -661,6 +662,13 @@ class PipelineConfig:
         lo, hi = (self.lanes.min_segment_angle, self.lanes.max_segment_angle)
         if segment_angles is not None:
             lo, hi = segment_angles
+            if not lo < hi:
+                raise ParameterError(
+                    "segment_angles",
+                    f"{lo:g},{hi:g}",
+                    "LO,HI degrees from the horizontal with LO < HI (equal angles keep no "
+                    "Hough segment, so no lane line is found)",
+                )
         lanes = replace(
             self.lanes,
             marks=marks,  # type: ignore[arg-type]

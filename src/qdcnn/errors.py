@@ -43,6 +43,20 @@ class ParameterError(QdcnnError, ValueError):
         super().__init__(f"{name}={value!r} is invalid: {allowed}")
 
 
+class OptionConflict(QdcnnError, ValueError):
+    """Two options were given that cannot apply together; the message names both.
+
+    Examples
+    --------
+    >>> str(OptionConflict("--exact", "--shots", "exact probabilities use no shots"))
+    '--exact and --shots cannot be used together: exact probabilities use no shots'
+    """
+
+    def __init__(self, first: str, second: str, reason: str) -> None:
+        self.options = (first, second)
+        super().__init__(f"{first} and {second} cannot be used together: {reason}")
+
+
 class MissingExtraError(QdcnnError, ImportError):
     """An optional dependency is needed but not installed; the message names the extra."""
 

@@ -237,3 +237,58 @@ def test_a_model_file_and_lane_options_are_one_error(command: str, tmp_path: Any
     res = runner.invoke(app, [*args, "--lanes", "paper"])
     assert res.exit_code == 2
     assert "carries the lane settings it was trained with" in " ".join(res.stderr.split())
+
+
+@pytest.mark.parametrize(
+    ("extra", "first", "second"),
+    [
+        (["--model", "{model}", "--centroid", "80"], "--model", "--centroid"),
+        (["--method", "ibt", "--model", "{model}"], "--model", "--method ibt"),
+        (["--exact", "--shots", "5"], "--exact", "--shots"),
+    ],
+)
+def test_conflicting_shadow_options_are_one_error_naming_both(
+    extra: list[str], first: str, second: str, tmp_path: Any
+) -> None:
+    import numpy as np
+
+    from qdcnn.data.images import write_image
+
+    write_image(tmp_path / "a.png", np.zeros((16, 32, 3), np.uint8))
+    model = tmp_path / "shadow.json"
+    model.write_text("{}")
+    args = [a.replace("{model}", str(model)) for a in extra]
+    out = tmp_path / "o"
+    res = runner.invoke(app, ["detect-shadows", str(tmp_path / "a.png"), "--out", str(out), *args])
+    assert res.exit_code == 2, res.stderr
+    assert res.stderr.startswith("error: ") and len(res.stderr.splitlines()) == 1
+    assert f"{first} and {second} cannot be used together" in res.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "names"),
+    [
+        (["--gap", "1000"], ("--inner-folds 3", "--gap 1000", "60 training frames")),
+        (["--inner-folds", "50"], ("--inner-folds 50", "--gap 5", "60 training frames")),
+    ],
+)
+def test_train_direction_refuses_an_inner_search_that_cannot_run(
+    extra: list[str], names: tuple[str, ...], tmp_path: Any
+) -> None:
+    out = tmp_path / "m.safetensors"
+    args = ["train-direction", "--data", "synthetic:track2:60", "--out", str(out), *extra]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.stderr
+    assert res.stderr.startswith("error: ") and len(res.stderr.splitlines()) == 1
+    assert all(name in res.stderr for name in names), res.stderr
+    assert not out.exists()
+
+
+def test_equal_segment_angles_are_refused_in_the_user_s_words(tmp_path: Any) -> None:
+    out = tmp_path / "m.safetensors"
+    args = ["train-direction", "--data", "synthetic:track2:60", "--out", str(out)]
+    res = runner.invoke(app, [*args, "--segment-angles", "45,45"])
+    assert res.exit_code == 2 and len(res.stderr.splitlines()) == 1
+    assert "segment_angles='45,45' is invalid: LO,HI degrees" in res.stderr
+    assert "no row has both slopes" not in res.stderr and not out.exists()

@@ -213,3 +213,18 @@ def test_non_utf8_names_are_read_listed_and_printed(tmp_path: Path) -> None:
     (missing,) = listing.missing
     assert str(missing) == f"{shown}/missing\\xe9.png: file not found"
     str(missing).encode("utf-8")
+
+
+def test_a_png_with_a_bad_crc_is_one_error_and_libpng_stays_quiet(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    good = write_image(tmp_path / "ok.png", np.zeros((16, 32, 3), np.uint8)).read_bytes()
+    flipped = bytearray(good)
+    flipped[good.find(b"IDAT") + 8] ^= 0xFF  # first byte of the compressed pixels
+    (tmp_path / "crc.png").write_bytes(bytes(flipped))
+    (tmp_path / "cut.png").write_bytes(good[:-20])
+    with pytest.raises(InputError, match="crc.png: .*PNG chunk 'IDAT' fails its CRC check"):
+        read_image(tmp_path / "crc.png")
+    with pytest.raises(InputError, match="cut.png: .*ends before its IEND chunk"):
+        read_image(tmp_path / "cut.png")
+    assert "libpng" not in capfd.readouterr().err

@@ -151,3 +151,13 @@ def test_one_registry_entry_makes_a_method_work_in_every_command(
 def test_the_default_config_is_the_recordings_preset() -> None:
     assert PipelineConfig() == PipelineConfig.udacity() == PipelineConfig.preset("udacity")
     assert PipelineConfig.preset("paper").lanes.smoothing_iterations == 30
+
+
+def test_an_inner_search_that_cannot_run_is_an_option_conflict() -> None:
+    from qdcnn.direction.methods import check_inner_search
+    from qdcnn.errors import OptionConflict
+
+    check_inner_search(60, 3, 5)  # blocks of 20 frames: searched
+    check_inner_search(10, 0, 1000)  # no search asked for
+    with pytest.raises(OptionConflict, match=r"--inner-folds 50 and --gap 5 .*\(--folds 2\)"):
+        check_inner_search(28, 50, 5, frames_from="--folds 2")

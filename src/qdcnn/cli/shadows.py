@@ -34,7 +34,9 @@ PathsArg = Annotated[list[Path], typer.Argument(help="Image files and/or folders
 MaskOutOpt = Annotated[Path, typer.Option("--out", help="Folder for <stem>_mask.png files.")]
 MethodOpt = Annotated[str, typer.Option(help="uu | uu-chroma | ibt | cbs | lbp")]
 ExactOpt = Annotated[bool, typer.Option("--exact", help="Exact probabilities instead of shots.")]
-ShotsOpt = Annotated[int, typer.Option(help="Shots per block circuit (paper: 1024).")]
+ShotsOpt = Annotated[
+    int | None, typer.Option(help="Shots per block circuit (default and paper: 1024).")
+]
 BackendOpt = Annotated[str, typer.Option(help="numpy | aer")]
 ThresholdOpt = Annotated[float | None, typer.Option(help="Fidelity threshold (default 0.97).")]
 CentroidOpt = Annotated[float | None, typer.Option(help="Shadow centroid in [0, 255].")]
@@ -50,7 +52,7 @@ def detect_shadows_cmd(
     out_dir: MaskOutOpt,
     method: MethodOpt = "uu",
     exact: ExactOpt = False,
-    shots: ShotsOpt = 1024,
+    shots: ShotsOpt = None,
     backend: BackendOpt = "numpy",
     threshold: ThresholdOpt = None,
     centroid: CentroidOpt = None,
@@ -72,7 +74,9 @@ def detect_shadows_cmd(
 
     table = Table("file", "shadow %", "ms", title=f"shadow detection: {method}")
     try:
-        cfg = ShadowConfig(shots=None if exact else shots, calibration_classes=calibration_classes)
+        check_shadow_options(method, exact=exact, shots=shots, centroid=centroid, model=model)
+        shots = None if exact else 1024 if shots is None else shots
+        cfg = ShadowConfig(shots=shots, calibration_classes=calibration_classes)
         cfg = replace(cfg, threshold=cfg.threshold if threshold is None else threshold)
         cfg = replace(cfg, centroid=centroid)
         spec = ShadowDetectionSpec(
@@ -88,6 +92,30 @@ def detect_shadows_cmd(
         out.print(table)
         out.print(_detection_line(result))
     raise typer.Exit(result.exit_code)
+
+
+def check_shadow_options(
+    method: str, *, exact: bool, shots: int | None, centroid: float | None, model: Path | None
+) -> None:
+    """Refuse options that the others would silently override or ignore.
+
+    Raises
+    ------
+    OptionConflict
+        ``--exact`` with ``--shots``, ``--model`` with ``--centroid`` (the given centroid
+        would replace the model's), or ``--model`` with a classical ``--method``.
+    """
+    from qdcnn.errors import OptionConflict
+    from qdcnn.vision.detectors import QUANTUM_DETECTORS
+
+    if exact and shots is not None:
+        raise OptionConflict("--exact", "--shots", "exact probabilities use no shots")
+    if model is not None and centroid is not None:
+        raise OptionConflict("--model", "--centroid", "the model file holds the centroid")
+    if model is not None and method not in QUANTUM_DETECTORS:
+        raise OptionConflict(
+            "--model", f"--method {method}", "a shadow model applies to the UU-dagger methods"
+        )
 
 
 def _mask_row(table: Table, record: Any) -> None:

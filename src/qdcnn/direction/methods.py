@@ -35,6 +35,7 @@ __all__ = [
     "DirectionMethod",
     "TrainingOptions",
     "check_fit_settings",
+    "check_inner_search",
     "get_method",
     "method_names",
     "register",
@@ -94,6 +95,38 @@ def check_fit_settings(gap: int, inner_folds: int, training: TrainingOptions) ->
         check_int("inner_folds", inner_folds, 2, 100)
     if training.weights is not None:
         require_file(training.weights, "weights file")
+
+
+def check_inner_search(
+    n: int, inner_folds: int, gap: int, *, frames_from: str | None = None
+) -> None:
+    """Refuse an inner search that cannot run on ``n`` training frames.
+
+    :func:`~qdcnn.direction.protocol.fit_with_search` fits without a search when an
+    inner block (``n // inner_folds`` frames) is not longer than the ``gap``; asked for
+    explicitly, that would silently ignore ``--inner-folds`` and ``--gap``.
+    ``frames_from`` names the option that set ``n`` (``"--folds 2"`` in evaluate).
+
+    Raises
+    ------
+    OptionConflict
+        Naming ``--inner-folds``, ``--gap`` (and ``frames_from``) with the block length.
+    """
+    from qdcnn.errors import OptionConflict
+
+    if inner_folds == 0:
+        return
+    block = n // inner_folds
+    if block > gap:
+        return
+    where = f"{n} training frames" + (f" ({frames_from})" if frames_from else "")
+    raise OptionConflict(
+        f"--inner-folds {inner_folds}",
+        f"--gap {gap}",
+        f"on {where} an inner block has {block} frames, not more than the gap, so no "
+        "hyperparameter search would run (fewer inner folds, a smaller gap, or "
+        "--inner-folds 0 for none)",
+    )
 
 
 _Builder = Callable[[PipelineConfig, TrainingOptions], tuple[BaseEstimator, _Grid]]

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import DIRECTIONS, class_balance
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions, get_method
+from qdcnn.direction.model_checks import check_estimator_params, check_fitted_attributes
 from qdcnn.direction.protocol import fit_with_search
 from qdcnn.errors import InputError, ParameterError, QdcnnError
 from qdcnn.persistence import (
@@ -140,6 +141,7 @@ class DirectionModel:
             config = PipelineConfig.from_dict(meta["config"])
             estimator, _ = method.estimator(config)
             estimator.set_params(**_params_from_json(meta["params"]))
+            check_estimator_params(estimator)
         except KeyError as exc:
             raise InputError(path, f"model header lacks {exc}") from None
         except (QdcnnError, TypeError, ValueError) as exc:
@@ -192,6 +194,7 @@ def _restore_estimator(
         estimator.load_fitted_state(meta.get("custom", {}), arrays, source)
         return
     restore_estimator_state(estimator, estimator.fitted_attributes, meta, arrays, source)
+    check_fitted_attributes(estimator, source)
 
 
 def _params_to_json(params: dict[str, Any]) -> dict[str, Any]:

@@ -57,6 +57,11 @@ class MaskRecord:
         }
 
 
+#: How each image's shot sampling is seeded (recorded in the settings, so masks that an
+#: older qdcnn seeded by list position are detected again, never resumed).
+SAMPLING_SEED = "run seed + SHA-256 of the image bytes"
+
+
 def mask_path(out_dir: Path, image: Path, stem: str | None = None) -> Path:
     """``out_dir/<stem>_mask.png`` (``stem`` defaults to the image's own)."""
     return out_dir / f"{image.stem if stem is None else stem}_mask.png"
@@ -76,15 +81,16 @@ def detect_files(
     """Detect shadows in each image and write its mask as it finishes.
 
     ``seconds`` is the detection time of that image, excluding reading and writing
-    files. Shot sampling of image ``i`` draws from ``default_rng([seed, i])``, so an
-    image's mask does not depend on which images ran before it. With a ``batch``, masks
+    files. Shot sampling of an image draws from :func:`image_rng` (the run seed and the
+    SHA-256 of the file's bytes), so an image's mask depends neither on its position in
+    the list nor on its name: a fresh run, a resumed run after images were added, and a
+    run on a renamed copy agree. With a ``batch``, masks
     go through its manifest: images whose record is complete are not detected again
     (their record comes back with ``resumed=True``).
     """
     check_method(method)
     out_dir.mkdir(parents=True, exist_ok=True)
     stems = unique_stems(list(images))
-    index = {path: i for i, path in enumerate(images)}
 
     def work(path: Path) -> MaskRecord:
         rel = mask_path(Path(), path, stems[path]).as_posix()
@@ -92,7 +98,7 @@ def detect_files(
         if done is not None:
             return MaskRecord(**{**done, "resumed": True})
         image = read_image(path)
-        rng = np.random.default_rng([seed, index[path]])
+        rng = image_rng(seed, path)
         t0 = time.perf_counter()
         mask = detect_shadows(image, method, config, model=model, backend=backend, rng=rng)
         seconds = time.perf_counter() - t0
@@ -105,6 +111,18 @@ def detect_files(
 
     for outcome in run_batch(images, work):
         yield outcome.failure if outcome.failure else outcome.result  # type: ignore[misc]
+
+
+def image_rng(seed: int, path: Path) -> np.random.Generator:
+    """The shot-sampling generator of one image: seeded by ``seed`` and the file's content.
+
+    The first 8 bytes of the SHA-256 of the file's bytes join the run seed, so identical
+    files get identical masks whatever their name or position in the list.
+    """
+    from qdcnn.outputs import file_identity
+
+    digest = file_identity(path, content_hash=True)["sha256"]
+    return np.random.default_rng([seed, int(digest[:16], 16)])
 
 
 @dataclass
@@ -185,7 +203,7 @@ class ShadowDetectionSpec:
         A model file from ``train-shadows`` (UU-dagger methods).
     backend : {"numpy", "aer"}
     seed : int
-        Seed of shot sampling.
+        Run seed of shot sampling (each image adds its SHA-256, :func:`image_rng`).
     """
 
     paths: tuple[Path, ...]
@@ -219,6 +237,7 @@ class ShadowDetectionSpec:
             "model": None if self.model is None else file_identity(self.model, content_hash=True),
             "backend": self.backend,
             "seed": self.seed,
+            "sampling": SAMPLING_SEED,
         }
 
 

@@ -9,7 +9,12 @@ from typing import TYPE_CHECKING, Any
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import check_labels_usable
-from qdcnn.direction.methods import TrainingOptions, check_fit_settings, get_method
+from qdcnn.direction.methods import (
+    TrainingOptions,
+    check_fit_settings,
+    check_inner_search,
+    get_method,
+)
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.runtime.reporting import Reporter
@@ -82,6 +87,8 @@ def train_direction(
     sets = [
         load_frameset(d, seed=cfg.seed, steering_unit=cfg.labels.steering_unit) for d in spec.specs
     ]
+    if method.estimator(spec.config, spec.training)[1]:  # a grid to search: before any work
+        check_inner_search(sum(len(f) for f in sets), spec.inner_folds, spec.gap)
     parts = [_inputs(spec, frames, sets, report) for frames in sets]
     shapes = {np.shape(x)[1:] for x, _, _ in parts}
     if len(shapes) > 1:

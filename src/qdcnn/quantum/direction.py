@@ -397,7 +397,10 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
         yk = labels[ok]
         must_search = self.centroid is None or bool(self.train_margin)
         if must_search and not ok.any():
-            raise InputError("X", "no row has both slopes finite: nothing to train on")
+            raise InputError(
+                "training data",
+                "no frame has both lane lines (two finite slopes): nothing to train on",
+            )
         self.accuracy_grid_: NDArray[np.float64] | None = None
         if must_search:
             self.centroid_, self.margin_, self.accuracy_grid_ = self._search(theta, yk)
