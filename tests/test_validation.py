@@ -59,14 +59,19 @@ def test_other_checks():
         check_optional_shots(1e21)
 
 
-def test_atomic_write_replaces_a_symlink_not_its_target(tmp_path):
+def test_atomic_write_refuses_a_symlink_and_leaves_its_target(tmp_path):
     victim = tmp_path / "victim.txt"
     victim.write_text("keep")
     link = tmp_path / "out.txt"
     link.symlink_to(victim)
-    atomic_write_bytes(link, b"new")
+    with pytest.raises(InputError) as info:
+        atomic_write_bytes(link, b"new")
+    assert str(info.value) == f"{link}: is a symbolic link; qdcnn never writes through one"
     assert victim.read_text() == "keep"
-    assert not link.is_symlink() and link.read_bytes() == b"new"
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == [
+        "out.txt",
+        "victim.txt",
+    ]
 
 
 def test_atomic_write_into_a_directory_is_an_input_error(tmp_path):

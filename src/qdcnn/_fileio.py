@@ -2,15 +2,20 @@
 
 A reader never sees a half-written file: the bytes go to ``.<name>.<random>.tmp``
 beside the target, are flushed to disk, and :func:`os.replace` puts them in place
-in one step. A rename replaces a symbolic link at the target path itself, so a
-pre-made link is never followed and its target never overwritten.
+in one step. A target that is a symbolic link is refused, so a pre-made link is
+never followed and its target never overwritten. Every :class:`OSError` becomes a
+one-line :class:`~qdcnn.errors.InputError` naming the path and the system's reason
+(read-only file system, no space left on device, permission denied, ...), and the
+clean-up of the temporary file never raises over it.
 """
 
 from __future__ import annotations
 
 import os
 import secrets
+import stat
 from pathlib import Path
+from typing import TextIO
 
 from qdcnn.errors import InputError
 
@@ -20,35 +25,187 @@ def temporary_sibling(path: Path) -> Path:
     return path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
 
 
+def os_reason(exc: OSError) -> str:
+    """The system's reason for ``exc`` in lower case ("read-only file system")."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    return reason[:1].lower() + reason[1:]
+
+
+_KINDS = {
+    stat.S_IFDIR: "is a directory, not a file to write",
+    stat.S_IFLNK: "is a symbolic link; qdcnn never writes through one",
+    stat.S_IFCHR: "is a character device, not a regular file; qdcnn never writes to one",
+    stat.S_IFBLK: "is a block device, not a regular file; qdcnn never writes to one",
+    stat.S_IFIFO: "is a named pipe, not a regular file; qdcnn never writes to one",
+    stat.S_IFSOCK: "is a socket, not a regular file; qdcnn never writes to one",
+}
+
+
+def refuse_non_regular(path: Path) -> None:
+    """Raise :class:`InputError` when ``path`` exists and is not a regular file.
+
+    A symbolic link is refused whatever it points to (it is never followed); a device
+    such as ``/dev/null`` is refused because a rename would replace the device itself.
+    """
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise InputError(path, f"cannot write: {os_reason(exc)}") from None
+    kind = stat.S_IFMT(mode)
+    if kind != stat.S_IFREG:
+        raise InputError(path, _KINDS.get(kind, "is not a regular file"))
+
+
+def make_folder(folder: Path) -> None:
+    """Create ``folder`` and its parents (existing is fine); one-line :class:`InputError`
+    naming it and the reason when that is impossible (a file in the way, read-only, ...)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise InputError(folder, "cannot create folder: not a directory") from None
+    except OSError as exc:
+        raise InputError(folder, f"cannot create folder: {os_reason(exc)}") from None
+
+
+def discard(path: Path) -> None:
+    """Remove ``path`` if it can be; never raises (clean-up after an error)."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def _write_new_file(tmp: Path, data: bytes) -> None:
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _sync_folder(folder: Path) -> None:
+    """Flush a rename in ``folder`` to disk where the system allows it (best effort)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically; the folder is created if needed.
+
+    The bytes go to a fresh temporary name beside ``path``, are flushed to disk and
+    renamed over ``path``. A ``path`` that is a symbolic link is refused, never followed.
 
     Raises
     ------
     InputError
-        The folder cannot be created or the file cannot be written (naming ``path``).
+        ``path`` is a folder, a symbolic link or a device, or the folder cannot be created or the
+        file cannot be written (one line naming the path and the system's reason).
     """
     target = Path(path)
-    if target.is_dir() and not target.is_symlink():
-        raise InputError(target, "is a directory, not a file to write")
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(target.parent, f"cannot create folder: {exc.strerror or exc}") from None
+    refuse_non_regular(target)
+    make_folder(target.parent)
     tmp = temporary_sibling(target)
     try:
-        fd = os.open(
-            tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644
-        )
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        _write_new_file(tmp, data)
         os.replace(tmp, target)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(target, f"cannot write: {exc.strerror or exc}") from None
+        discard(tmp)
+        raise InputError(target, f"cannot write: {os_reason(exc)}") from None
+    _sync_folder(target.parent)
     return target
+
+
+class AtomicTextFile:
+    """A text file written piece by piece under another name, moved into place by :meth:`commit`.
+
+    Parameters
+    ----------
+    path : path-like
+        The finished file (its folder is created; a link or device there is refused).
+    partial : path-like, optional
+        Where the text goes until :meth:`commit` (default: a fresh hidden temporary name
+        beside ``path``); it is opened without following a link.
+    errors : str
+        The encoder's error handler (``"surrogateescape"`` keeps undecodable file names).
+
+    Every :class:`OSError` becomes a one-line :class:`InputError` naming ``path``.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        partial: str | os.PathLike[str] | None = None,
+        errors: str = "strict",
+    ) -> None:
+        self.path = Path(path)
+        refuse_non_regular(self.path)
+        make_folder(self.path.parent)
+        self.partial = Path(partial) if partial is not None else temporary_sibling(self.path)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0)
+        try:
+            fd = os.open(self.partial, flags, 0o644)
+        except OSError as exc:
+            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+        self._fh: TextIO | None = os.fdopen(fd, "w", encoding="utf-8", newline="", errors=errors)
+
+    def write(self, text: str) -> int:
+        """Append ``text`` (the ``write`` of a file object, so :func:`csv.writer` takes it)."""
+        assert self._fh is not None, "written after commit or abort"
+        try:
+            return self._fh.write(text)
+        except OSError as exc:
+            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+
+    def flush(self) -> None:
+        if self._fh is not None:
+            try:
+                self._fh.flush()
+            except OSError as exc:
+                raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+
+    def commit(self) -> Path:
+        """Flush to disk and rename onto ``path``; returns ``path``."""
+        if self._fh is None:
+            return self.path
+        try:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+            self._fh = None
+            refuse_non_regular(self.path)
+            os.replace(self.partial, self.path)
+        except (OSError, InputError) as exc:
+            self.abort()
+            if isinstance(exc, InputError):
+                raise
+            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+        _sync_folder(self.path.parent)
+        return self.path
+
+    def close(self) -> None:
+        """Stop writing and leave ``partial`` where it is (never raises)."""
+        if self._fh is not None:
+            try:
+                self._fh.close()
+            except OSError:
+                pass
+            self._fh = None
+
+    def abort(self) -> None:
+        """Stop writing and remove ``partial`` (never raises)."""
+        self.close()
+        discard(self.partial)
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:

@@ -43,7 +43,7 @@ from typing import Any, Literal
 
 from qdcnn import __version__
 from qdcnn._closing import ClosesOnExit
-from qdcnn._fileio import temporary_sibling
+from qdcnn._fileio import os_reason, temporary_sibling
 from qdcnn.errors import InputError, ParameterError
 
 LOCK_NAME = ".qdcnn.lock"
@@ -150,7 +150,7 @@ def file_identity(path: str | os.PathLike[str], *, content_hash: bool = False) -
     try:
         st = p.stat()
     except OSError as exc:
-        raise InputError(p, f"cannot read: {exc.strerror or exc}") from None
+        raise InputError(p, f"cannot read: {os_reason(exc)}") from None
     out: dict[str, Any] = {"path": str(p.resolve()), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
     if content_hash:
         h = hashlib.sha256()
@@ -204,7 +204,7 @@ class OutputFolder(ClosesOnExit):
             self._dir_fd = os.open(self.root, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         except OSError as exc:
             raise InputError(
-                self.root, f"cannot create or open the output folder: {exc.strerror or exc}"
+                self.root, f"cannot create or open the output folder: {os_reason(exc)}"
             ) from None
         try:
             self._lock_fd = os.open(
@@ -216,7 +216,7 @@ class OutputFolder(ClosesOnExit):
         except OSError as exc:
             self.close()
             raise InputError(
-                self.root, f"output folder is not writable: {exc.strerror or exc}"
+                self.root, f"output folder is not writable: {os_reason(exc)}"
             ) from None
         self._acquire()
         try:
@@ -237,7 +237,7 @@ class OutputFolder(ClosesOnExit):
             except OSError as exc:
                 if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
                     self.close()
-                    raise InputError(self.root, f"cannot lock: {exc.strerror or exc}") from None
+                    raise InputError(self.root, f"cannot lock: {os_reason(exc)}") from None
             if time.monotonic() >= deadline:
                 self.close()
                 waited = f" (waited {self.wait:g} s)" if self.wait else ""
@@ -286,7 +286,7 @@ class OutputFolder(ClosesOnExit):
                         raise InputError(
                             shown, "is a symbolic link; qdcnn never writes through one"
                         ) from None
-                    raise InputError(shown, f"cannot open folder: {exc.strerror or exc}") from None
+                    raise InputError(shown, f"cannot open folder: {os_reason(exc)}") from None
                 os.close(fd)
                 fd = child
         except BaseException:
@@ -325,7 +325,7 @@ class OutputFolder(ClosesOnExit):
                 os.unlink(tmp, dir_fd=fd)
             except OSError:
                 pass
-            raise InputError(target, f"cannot write: {exc.strerror or exc}") from None
+            raise InputError(target, f"cannot write: {os_reason(exc)}") from None
         finally:
             os.close(fd)
         return OutputRecord.of(data)
@@ -368,7 +368,7 @@ class OutputFolder(ClosesOnExit):
             except OSError:
                 pass
             if isinstance(exc, OSError):
-                raise InputError(target, f"cannot write: {exc.strerror or exc}") from None
+                raise InputError(target, f"cannot write: {os_reason(exc)}") from None
             raise
         finally:
             os.close(fd)
@@ -438,7 +438,8 @@ class OutputFolder(ClosesOnExit):
         except FileNotFoundError:
             pass
         except OSError as exc:
-            raise InputError(self.root.joinpath(*parts), f"cannot remove: {exc.strerror}") from None
+            reason = f"cannot remove: {os_reason(exc)}"
+            raise InputError(self.root.joinpath(*parts), reason) from None
         finally:
             os.close(fd)
 

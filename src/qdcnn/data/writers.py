@@ -19,13 +19,13 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence, Sized
 from datetime import datetime, timedelta
 from pathlib import Path
-from typing import Literal, TextIO
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._closing import FinishesOnExit
-from qdcnn._fileio import temporary_sibling
+from qdcnn._fileio import AtomicTextFile
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.data.synthetic import RoadScene
 from qdcnn.errors import ParameterError
@@ -66,28 +66,16 @@ class _TextSink:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = temporary_sibling(path)
-        self._fh: TextIO | None = open(self._tmp, "x", encoding="utf-8", newline="")
+        self._file = AtomicTextFile(path)
 
     def write(self, line: str) -> None:
-        assert self._fh is not None
-        self._fh.write(line + "\n")
+        self._file.write(line + "\n")
 
     def close(self) -> Path:
-        if self._fh is not None:
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
-            self._fh = None
-            os.replace(self._tmp, self.path)
-        return self.path
+        return self._file.commit()
 
     def abort(self) -> None:
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
-        self._tmp.unlink(missing_ok=True)
+        self._file.abort()
 
 
 class SceneSink(FinishesOnExit, ABC):

@@ -9,7 +9,6 @@ quoted properly and a crash keeps every finished row).
 from __future__ import annotations
 
 import csv
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn._fileio import unique_stems
+from qdcnn._fileio import AtomicTextFile, unique_stems
 from qdcnn._validation import check_bool, check_float, check_seed
 from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
@@ -177,24 +176,20 @@ class _PredictionTable:
         self.final = out / "predictions.csv"
 
     def __enter__(self) -> _PredictionTable:
-        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0)
-        try:
-            fd = os.open(self.partial, flags, 0o644)
-        except OSError as exc:
-            raise InputError(self.partial, f"cannot write: {exc.strerror or exc}") from None
-        self.fh = os.fdopen(fd, "w", newline="", encoding="utf-8", errors="surrogateescape")
-        self.writer = csv.writer(self.fh)
+        self.file = AtomicTextFile(self.final, partial=self.partial, errors="surrogateescape")
+        self.writer = csv.writer(self.file)
         self.writer.writerow(CSV_COLUMNS)
         return self
 
     def add(self, record: LaneRecord) -> None:
         self.writer.writerow(_csv_row(record))
-        self.fh.flush()
+        self.file.flush()
 
     def __exit__(self, exc_type: type[BaseException] | None, *_: object) -> None:
-        self.fh.close()
         if exc_type is None:
-            os.replace(self.partial, self.final)
+            self.file.commit()
+        else:
+            self.file.close()
 
 
 def _csv_row(record: LaneRecord) -> list[str]:

@@ -25,6 +25,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from qdcnn._fileio import atomic_write_text
 from qdcnn._optional import has_module, require
 from qdcnn.errors import InputError, MissingExtraError, ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
@@ -175,11 +176,7 @@ def write_qasm3(
     text = to_qasm3(circuit, index, measure=measure)
     if check:
         check_qasm_round_trip(circuit, text, index, measure=measure)
-    p = Path(path)
     try:
-        if p.parent != Path():
-            p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(text)
-    except OSError as exc:
-        raise InputError(p, f"cannot write the OpenQASM file ({exc.strerror})") from None
-    return p
+        return atomic_write_text(path, text)
+    except InputError as exc:
+        raise InputError(exc.source, f"cannot write the OpenQASM file ({exc.reason})") from None

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from qdcnn._fileio import atomic_write_bytes
 from qdcnn.data.video import VideoReader, VideoWriter, concat_mp4
 from qdcnn.outputs import OutputFolder, OutputRecord
 from qdcnn.runtime.chunks import ChunkResult, ChunkTask
@@ -143,7 +144,7 @@ def _join_segments(segments: list[tuple[bytes, float]], path: Path, fps: float) 
     with tempfile.TemporaryDirectory() as tmp:
         for k, (data, _start) in enumerate(segments):
             seg = Path(tmp) / f"{k}.mp4"
-            seg.write_bytes(data)
+            atomic_write_bytes(seg, data)
             with VideoReader(seg, decoder="opencv") as reader:
                 for frame in reader:
                     writer.write(frame.image)

@@ -13,11 +13,13 @@ is involved.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from pathlib import Path
 from typing import Any
 
+from qdcnn._fileio import atomic_write_bytes
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.noise.options import SHADOW_METHOD
 from qdcnn.experiments.noise.results import NoiseSweepResult
@@ -156,15 +158,17 @@ def shadow_plot_path(path: str | os.PathLike[str]) -> Path:
 
 
 def save_figure(fig: Any, path: str | os.PathLike[str], *, dpi: int = 120) -> Path:
-    """Save ``fig`` (format from the suffix, PNG by default) and return the path."""
+    """Save ``fig`` (format from the suffix, PNG by default) and return the path.
+
+    The figure is rendered to bytes, then written atomically (a link at ``path`` is refused).
+    """
     p = Path(path)
+    buffer = io.BytesIO()
     try:
-        if p.parent != Path():
-            p.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(p, dpi=dpi, format=p.suffix[1:] or "png")
-    except (OSError, ValueError) as exc:
+        fig.savefig(buffer, dpi=dpi, format=p.suffix[1:] or "png")
+    except ValueError as exc:
         raise InputError(p, f"cannot write the figure ({exc})") from None
-    return p
+    return atomic_write_bytes(p, buffer.getvalue())
 
 
 def write_figures(result: NoiseSweepResult, path: str | os.PathLike[str]) -> list[Path]:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from qdcnn import __version__
-from qdcnn._fileio import atomic_write_text
+from qdcnn._fileio import atomic_write_text, make_folder, os_reason
 from qdcnn._optional import has_gpu
 from qdcnn.batch import Failure
 from qdcnn.errors import InputError, ParameterError, QdcnnError
@@ -162,19 +162,22 @@ def prepare_output(spec: ReproduceSpec) -> dict[str, Section]:
                 "folder exists and is not empty: use --force to overwrite it or --resume to "
                 "continue the run in it",
             )
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    (out / "sections").mkdir(exist_ok=True)
+    make_folder(out / "figures")
+    make_folder(out / "sections")
     state = {"fingerprint": spec.fingerprint(), "spec": spec.to_dict()}
     atomic_write_text(out / STATE_FILE, json.dumps(state, indent=2))
     return kept
 
 
 def _remove_report_files(out: Path) -> None:
-    for name in ("index.html", "report.json"):
-        (out / name).unlink(missing_ok=True)
-    for folder in ("figures", "sections"):
-        if (out / folder).is_dir():
-            shutil.rmtree(out / folder)
+    try:
+        for name in ("index.html", "report.json"):
+            (out / name).unlink(missing_ok=True)
+        for folder in ("figures", "sections"):
+            if (out / folder).is_dir():
+                shutil.rmtree(out / folder)
+    except OSError as exc:
+        raise InputError(out, f"cannot remove the old report: {os_reason(exc)}") from None
 
 
 def _finished_sections(spec: ReproduceSpec) -> dict[str, Section]:
