@@ -56,7 +56,8 @@ def frame_methods(ctx: RunContext) -> tuple[list[DirectionMethod], list[str]]:
     methods, notes = select_methods(
         "all" if chosen in ("paper", "all") else chosen, has_torch=has_torch(), has_gpu=has_gpu()
     )
-    frames = [m for m in methods if m.inputs == "frames"]
+    # the report's frame methods are the networks (Fig. 5 draws their training histories)
+    frames = [m for m in methods if m.inputs == "frames" and m.kind != "logreg"]
     if chosen == "paper":
         left = [m.name for m in frames if m.name not in PAPER_CNNS]
         frames = [m for m in frames if m.name in PAPER_CNNS]
