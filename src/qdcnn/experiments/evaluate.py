@@ -28,12 +28,12 @@ from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import FrameSet, load_frameset, stack_images
-from qdcnn.data.images import require_file
 from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
     DirectionMethod,
     TrainingOptions,
+    check_fit_settings,
     get_method,
     select_methods,
 )
@@ -331,11 +331,7 @@ class EvaluationSpec:
 
     def __post_init__(self) -> None:
         check_int("folds", self.folds, 2, 10_000)
-        check_int("gap", self.gap, 0, 10_000)
-        if self.inner_folds != 0:
-            check_int("inner_folds", self.inner_folds, 2, 100)
-        if self.training.weights is not None:
-            require_file(self.training.weights, "weights file")
+        check_fit_settings(self.gap, self.inner_folds, self.training)
         check_int("seeds", self.seeds, 1, 1000)
         if bool(self.train) != bool(self.test):
             raise ParameterError(
