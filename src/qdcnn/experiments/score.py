@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from qdcnn._validation import check_int, check_seed
 from qdcnn.batch import Failure
 from qdcnn.config import LabelConfig
-from qdcnn.data.frames import FrameSet, load_frameset, parse_spec, stack_images
+from qdcnn.data.frames import FrameSet, load_frameset, parse_data_spec, stack_images
 from qdcnn.data.labels import DirectionLabels
 from qdcnn.direction.builtin import DEFAULT_METHOD, default_direction_model, describe_default_model
 from qdcnn.direction.model import DirectionModel
@@ -81,7 +81,7 @@ class ScoreSpec:
         if not self.data:
             raise ParameterError("data", "", "at least one dataset spec")
         for spec in self.data:
-            parse_spec(spec)
+            parse_data_spec(spec)
         check_seed("seed", self.seed)
         check_int("resamples", self.resamples, 10, 10**6)
         if self.block is not None:
@@ -214,10 +214,12 @@ class _Dataset:
 
 def _check_paths(specs: tuple[str, ...]) -> None:
     """Every recording named exists (a typo stops the run before anything is scored)."""
+    from qdcnn.data.images import require_file_or_folder
+
     for spec in specs:
-        kind, value = parse_spec(spec)
-        if kind != "synthetic" and not Path(value).exists():
-            raise InputError(value, "file not found")
+        parsed = parse_data_spec(spec)  # a label suffix (@unit=...) is not part of the path
+        if parsed.kind != "synthetic":
+            require_file_or_folder(parsed.value, "file")
 
 
 def _load_model(spec: ScoreSpec, report: Reporter) -> tuple[DirectionModel, str]:
