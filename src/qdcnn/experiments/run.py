@@ -17,7 +17,7 @@ from typing import Any
 
 from qdcnn._validation import check_seed
 from qdcnn.config import PipelineConfig
-from qdcnn.data.frames import load_frameset, parse_spec
+from qdcnn.data.frames import load_frameset, parse_data_spec
 from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.errors import ParameterError
@@ -126,7 +126,7 @@ def _why_failed(item: InputResult) -> str:
 def _input(item: str, spec: RunSpec) -> Any:
     """A path as it is; a dataset spec loaded as a frame source."""
     if item.startswith(_SPEC_KINDS):
-        parse_spec(item)
+        parse_data_spec(item)
         return load_frameset(item, seed=spec.seed)
     return item
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from qdcnn._validation import check_int, check_seed
-from qdcnn.data.frames import load_frameset, parse_spec
+from qdcnn.data.frames import load_frameset, parse_data_spec
 from qdcnn.data.images import require_file_or_folder
 from qdcnn.data.shadow_set import require_shadow_set
 from qdcnn.errors import ParameterError
@@ -81,7 +81,7 @@ def parse_data_option(text: str) -> DatasetEntry:
     if not sep or not spec.strip():
         raise ParameterError("data", text, "LABEL=SPEC, e.g. track1=udacity:PATH")
     entry = DatasetEntry(check_label(label.strip()), spec.strip())
-    parse_spec(entry.spec)  # a bad kind is an error before any work
+    parse_data_spec(entry.spec)  # a bad kind or suffix is an error before any work
     return entry
 
 
@@ -189,7 +189,7 @@ def _entries(
     else:
         out = [DatasetEntry(check_label(e.label), e.spec) for e in data]
     for e in out:
-        parse_spec(e.spec)
+        parse_data_spec(e.spec)
     return tuple(out)
 
 
@@ -286,9 +286,9 @@ class ReproduceSpec:
         Recordings are read as far as their label tables (images are read lazily later).
         """
         for entry in self.data:
-            kind, value = parse_spec(entry.spec)
-            if kind != "synthetic":
-                require_file_or_folder(value, f"{kind} recording")
+            parsed = parse_data_spec(entry.spec)  # without its @label suffix
+            if parsed.kind != "synthetic":
+                require_file_or_folder(parsed.value, f"{parsed.kind} recording")
                 load_frameset(entry.spec)
         if self.shadow_set is not None:
             require_shadow_set(Path(self.shadow_set))
