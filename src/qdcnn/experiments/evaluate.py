@@ -173,9 +173,10 @@ def _seeded_runs(
 ) -> list[CrossValidation]:
     """One cross-validation of ``m`` per seed (the config's seed replaced), folds kept."""
     runs = []
+    data = array_digest(X, y)  # hashing frames is costly: once, not per seed
     for seed in seeds:
         seeded = replace(cfg, seed=seed)
-        store = fold_store(m, seeded, opts, protocol, X, y, use_cache)
+        store = fold_store(m, seeded, opts, protocol, data, use_cache)
         build = _Build(m, seeded, opts)
         folds, gap, inner = protocol["folds"], protocol["gap"], protocol["inner_folds"]
         runs.append(
@@ -220,18 +221,18 @@ def fold_store(
     config: PipelineConfig,
     options: TrainingOptions | None,
     protocol: dict[str, Any],
-    X: NDArray[Any],
-    y: NDArray[np.int64],
+    data: str,
     use_cache: bool,
 ) -> UnitStore:
-    """Where the folds of ``m`` on ``(X, y)`` with ``config`` (and its seed) are kept."""
+    """Where the folds of ``m`` on the data of digest ``data`` (:func:`array_digest` of
+    ``X, y``) with ``config`` (and its seed) are kept."""
     key = unit_key(
         kind="k-fold",
         method=m.name,
         config=config.to_dict(),
         options=None if options is None else options_key(options),
         protocol=protocol,
-        data=array_digest(X, y),
+        data=data,
     )
     return UnitStore(key, use_cache)
 

@@ -200,10 +200,13 @@ def cross_evaluate(
     t0 = time.perf_counter()
     runs: dict[str, list[NDArray[np.int64]]] = {t.name: [] for t in tests}
     chosen: list[dict[str, Any]] = []
+    # hashing frames is costly: each digest once, not per seed and per lookup
+    train_digest = array_digest(x_train, y_train)
+    test_digests = {t.name: array_digest(t.x, t.y) for t in tests}
     for seed in seeds:
         cfg = replace(spec.config, seed=seed)
-        store = UnitStore(_train_key(m, cfg, opts, spec, x_train, y_train), spec.use_cache)
-        done = {t.name: store.get(array_digest(t.x, t.y)) for t in tests}
+        store = UnitStore(_train_key(m, cfg, opts, spec, train_digest), spec.use_cache)
+        done = {t.name: store.get(test_digests[t.name]) for t in tests}
         fitted: Any = None
         picked: dict[str, Any] = {}
         if any(hit is None for hit in done.values()):
@@ -217,7 +220,7 @@ def cross_evaluate(
                 assert fitted is not None
                 pred = np.asarray(fitted.predict(t.x), dtype=np.int64)
                 epochs = len(getattr(fitted, "history_", []))
-                store.put(array_digest(t.x, t.y), pred, picked, epochs)
+                store.put(test_digests[t.name], pred, picked, epochs)
                 hit = (pred, picked, epochs)
             runs[t.name].append(hit[0])
             picked = hit[1]
@@ -235,8 +238,7 @@ def _train_key(
     cfg: Any,
     opts: TrainingOptions | None,
     spec: EvaluationSpec,
-    x: NDArray[Any],
-    y: NDArray[np.int64],
+    train_digest: str,
 ) -> str:
     return unit_key(
         kind="cross-recording",
@@ -244,7 +246,7 @@ def _train_key(
         config=cfg.to_dict(),
         options=None if opts is None else options_key(opts),
         protocol={"gap": spec.gap, "inner_folds": spec.inner_folds},
-        train=array_digest(x, y),
+        train=train_digest,
     )
 
 
