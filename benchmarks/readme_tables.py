@@ -20,6 +20,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from qdcnn.experiments.reproduce.accuracy import MAJORITY_NOTE, majority_text, result_text
+
 TITLES = {"track1": "Track 1", "track2": "Track 2", "carla": "CARLA"}
 
 
@@ -34,7 +36,7 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]], numeric
 
 
 def _acc(res: dict[str, Any] | None) -> str:
-    return "" if res is None else f"{res['accuracy']:.3f} ± {res['accuracy_std']:.3f}"
+    return "" if res is None else result_text(res)
 
 
 def accuracy_table(report: dict[str, Any], sid: str) -> str | None:
@@ -66,7 +68,8 @@ def accuracy_table(report: dict[str, Any], sid: str) -> str | None:
             ]
         rows.append(row)
     for title, fmt in (
-        ("majority class of the training folds", lambda d: f"{d['majority_baseline']:.3f}"),
+        ("majority class of the training folds", majority_text),
+        ("chance", lambda d: "0.33; acc —"),
         (
             "class balance (left / straight / right)",
             lambda d: " / ".join(str(v) for v in d["class_balance"].values()),
@@ -77,7 +80,7 @@ def accuracy_table(report: dict[str, Any], sid: str) -> str | None:
         for d in datasets:
             row += ["", fmt(d) if d.get("majority_baseline") is not None else "", ""]
         rows.append(row)
-    return markdown_table(header, rows)
+    return markdown_table(header, rows) + "\n\n" + MAJORITY_NOTE
 
 
 def _missing(d: dict[str, Any], mode: str, method: str) -> str:

@@ -221,9 +221,10 @@ def test_readme_tables_print_the_reports_numbers(tiny, tmp_path) -> None:
     assert run.returncode == 0, run.stderr
     res = _section(folder, "table-i")["data"]["datasets"]["track1"]["results"]["paper"]
     acc = res["image-split-uu"]
-    assert f"| image-split-uu | 0.70 | {acc['accuracy']:.3f} ± {acc['accuracy_std']:.3f} |" in (
-        run.stdout
-    )
+    ba, ci = acc["balanced_accuracy"], acc["balanced_accuracy_ci"]
+    cell = f"{ba:.2f} [{ci['low']:.2f}, {ci['high']:.2f}]; acc {acc['accuracy']:.2f} ["
+    assert f"| image-split-uu | 0.70 | {cell}" in run.stdout
+    assert "its accuracy can then fall below chance" in run.stdout
     for heading in ("Table I", "Table II", "Table III", "Table IV", "Fig. 7", "Shadow"):
         assert f"#### {heading}" in run.stdout
     assert "| profile (**estimate**, not measured) | seconds per frame |" in run.stdout

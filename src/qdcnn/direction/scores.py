@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +44,7 @@ __all__ = [
     "Scores",
     "block_bootstrap",
     "block_length",
+    "format_metric",
     "format_with_interval",
     "paired_difference",
     "politis_white_block",
@@ -214,6 +216,24 @@ def undefined_reason(y_true: NDArray[np.int64]) -> str | None:
 def format_with_interval(value: float, interval: Interval, digits: int = 2) -> str:
     """``value [low, high]`` rounded to ``digits`` decimals, e.g. ``0.71 [0.66, 0.76]``."""
     return f"{value:.{digits}f} [{interval.low:.{digits}f}, {interval.high:.{digits}f}]"
+
+
+def format_metric(result: Mapping[str, Any], metric: str, digits: int = 2) -> str:
+    """``result[metric]`` with its ``result[metric + "_ci"]`` interval, as a table prints it.
+
+    ``result`` is a result's JSON form (``MethodResult.to_dict()``, a ``score`` object); a
+    missing interval prints the value alone and an undefined value (balanced accuracy of a
+    one-class test set) prints ``undefined`` and a missing one ``—``.
+    """
+    if metric not in result:
+        return "—"
+    value = result[metric]
+    if value is None:
+        return "undefined"
+    ci = result.get(f"{metric}_ci")
+    if not ci:
+        return f"{value:.{digits}f}"
+    return f"{value:.{digits}f} [{ci['low']:.{digits}f}, {ci['high']:.{digits}f}]"
 
 
 def block_bootstrap(

@@ -32,7 +32,14 @@ from qdcnn.experiments.reproduce.model import Cell, Section, cell
 from qdcnn.experiments.reproduce.paper_values import COMPARISON, TEXT_DISAGREES, paper_accuracy
 from qdcnn.experiments.reproduce.spec import PAPER_CNNS, DatasetEntry
 
-__all__ = ["PROTOCOL", "accuracy_section", "comparison_section"]
+__all__ = [
+    "MAJORITY_NOTE",
+    "PROTOCOL",
+    "accuracy_section",
+    "comparison_section",
+    "majority_text",
+    "result_text",
+]
 
 #: The evaluation protocol of every accuracy (``qdcnn evaluate``'s defaults).
 PROTOCOL: dict[str, int] = {"folds": 5, "gap": 5, "inner_folds": 3}
@@ -192,8 +199,9 @@ def _frame_result(
     cfg = ctx.configs["paper"]
     sink: list[list[dict[str, Any]]] = []
     options = TrainingOptions(epochs=ctx.spec.epochs, threads=ctx.spec.threads)
+    networks = method.kind != "logreg"  # Fig. 5 draws the networks' epochs, not the references
     res, failures = evaluate_frames(
-        _recording_method(method, sink),
+        _recording_method(method, sink) if networks else method,
         frames,
         frames.labels(cfg.labels),
         config=cfg,
@@ -203,7 +211,8 @@ def _frame_result(
     )
     for f in failures:
         ctx.reporter.failure(f)
-    out["cnn_history"][method.name] = sink
+    if networks:
+        out["cnn_history"][method.name] = sink
     return res.to_dict()
 
 
@@ -218,6 +227,7 @@ def accuracy_section(ctx: RunContext, section: Section, labels: tuple[str, ...])
         return
     lane = [get_method(n) for n in method_names(inputs="lanes")]
     frames_methods, notes = frame_methods(ctx)
+    frames_methods = _references() + frames_methods
     for n in notes:
         section.note(n)
     results: dict[str, Any] = {}
@@ -241,6 +251,7 @@ def accuracy_section(ctx: RunContext, section: Section, labels: tuple[str, ...])
                 *_accuracy_table([e], results, lane + frames_methods),
                 caption=f"{e.title}: {r['name']} ({r['n']} frames scored)",
             )
+    section.text(MAJORITY_NOTE)
     section.table(*_fold_table(entries, results), caption="per-fold accuracy", collapsed=True)
     from qdcnn.experiments.reproduce.plots import accuracy_bars
 
@@ -255,13 +266,21 @@ def accuracy_section(ctx: RunContext, section: Section, labels: tuple[str, ...])
     _disagreements(section, labels)
 
 
+def _references() -> list[DirectionMethod]:
+    """The non-deep frame references (HOG + logistic regression): in every table, torch or not."""
+    return [get_method(n) for n in method_names(inputs="frames") if get_method(n).kind == "logreg"]
+
+
 def _describe(ctx: RunContext, section: Section) -> None:
     kinds = ctx.profile.named_kinds
     which = "every lane method" if kinds is None else "the " + "/".join(kinds) + " methods"
     section.text(
         f"{PROTOCOL['folds']} contiguous folds with a {PROTOCOL['gap']}-frame gap on each side "
         "of each test block; hyperparameters chosen by an inner contiguous CV on the training "
-        "folds only; accuracy pooled over all test frames, ± the standard deviation over folds. "
+        "folds only. Each cell: balanced accuracy (mean per-class recall, the main figure; "
+        "best in bold), then accuracy, both pooled over all test frames with a 95 % interval "
+        "from a block bootstrap over contiguous blocks of test frames (per-fold accuracies in "
+        "the collapsed table). The paper's figures are accuracies. "
         "*paper pipeline*: the paper's settings (UU† shadow removal, grey Canny, the two "
         "slopes). *named options* (not the paper's, shown for "
         f"{which}): `--features road-centre --edges rgb --no-shadow-removal`. Labels from "
@@ -269,10 +288,20 @@ def _describe(ctx: RunContext, section: Section) -> None:
     )
 
 
-def _fmt(result: dict[str, Any] | None) -> str:
+def result_text(result: dict[str, Any] | None) -> str:
+    """Balanced accuracy first (the main figure), then accuracy, each with its interval."""
     if result is None:
         return "—"
-    return f"{result['accuracy']:.3f} ± {result['accuracy_std']:.3f}"
+    from qdcnn.direction.scores import format_metric
+
+    ba, acc = format_metric(result, "balanced_accuracy"), format_metric(result, "accuracy")
+    return f"{ba}; acc {acc}"
+
+
+def _rank(result: dict[str, Any]) -> float:
+    """What "best" means in the tables: balanced accuracy (accuracy where it is undefined)."""
+    value = result.get("balanced_accuracy")
+    return float(result["accuracy"] if value is None else value)
 
 
 def _accuracy_table(
@@ -285,7 +314,7 @@ def _accuracy_table(
         header += [f"paper, {e.title}", "measured: paper pipeline", "measured: named options"]
     best = {
         e.key: max(
-            (r["accuracy"] for mode in ("paper", "named") for r in _modes(results[e.key], mode)),
+            (_rank(r) for mode in ("paper", "named") for r in _modes(results[e.key], mode)),
             default=None,
         )
         for e in entries
@@ -303,8 +332,8 @@ def _accuracy_table(
             for mode in ("paper", "named"):
                 res = r["results"][mode].get(m.name)
                 err = r["errors"][mode].get(m.name)
-                text = "failed" if err else _fmt(res)
-                is_best = res is not None and res["accuracy"] == best[e.key]
+                text = "failed" if err else result_text(res)
+                is_best = res is not None and _rank(res) == best[e.key]
                 row.append(cell(text, "best" if is_best else "measured" if res else "na"))
         rows.append(row)
     rows += _summary_rows(entries, results)
@@ -318,7 +347,8 @@ def _modes(r: dict[str, Any], mode: str) -> list[dict[str, Any]]:
 def _summary_rows(entries: list[DatasetEntry], results: dict[str, Any]) -> list[list[Cell]]:
     rows: list[list[Cell]] = []
     specs = (
-        ("majority class of the training folds", lambda r: f"{r['majority_baseline']:.3f}"),
+        ("majority class of the training folds", majority_text),
+        ("chance", lambda r: "0.33; acc —"),
         (
             "class balance (left / straight / right)",
             lambda r: " / ".join(str(v) for v in r["class_balance"].values()),
@@ -333,6 +363,25 @@ def _summary_rows(entries: list[DatasetEntry], results: dict[str, Any]) -> list[
             row += ["", cell(fmt(r) if ok else "—", "measured"), ""]
         rows.append(row)
     return rows
+
+
+def majority_text(r: dict[str, Any]) -> str:
+    """The majority row's cell: its balanced accuracy and accuracy over the pooled test frames."""
+    from qdcnn.direction.scores import format_metric
+
+    first = next(iter(r["results"]["paper"].values()), {})
+    ba = format_metric(first.get("majority", {}), "balanced_accuracy")
+    return f"{ba}; acc {r['majority_baseline']:.2f}"
+
+
+#: One line under each accuracy table: what the majority row is and why it can be low.
+MAJORITY_NOTE = (
+    "Baselines: *majority class of the training folds* predicts, for every frame of a test "
+    "block, the class most frequent in that fold's training frames. Contiguous folds cut a "
+    "drive into stretches, so that class can be rare in the test stretch (a stretch of turns "
+    "after a mostly straight drive): its accuracy can then fall below chance, while its "
+    "balanced accuracy stays near 1/3. *chance*: balanced accuracy 1/3 (three classes)."
+)
 
 
 def _fold_table(
