@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -63,21 +64,33 @@ def runs(root: Path) -> dict[str, list[str]]:
     return {"leave-one-out": loo, "real-sample": real}
 
 
-def run_one(name: str, args: list[str], out: Path, cache: Path, common: list[str]) -> float:
-    """Run one evaluation, keep its JSON lines (lighter) and return its wall seconds."""
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_one(
+    name: str, args: list[str], out: Path, cache: Path, common: list[str]
+) -> tuple[float, float]:
+    """Run one evaluation, keep its JSON lines (lighter); its wall and CPU seconds.
+
+    The CPU seconds (user + system of the evaluation and its workers) say what the run
+    costs on a machine shared with other work, where the wall time says mostly how busy
+    the machine was.
+    """
     command = ["qdcnn", "evaluate", *args, *common, "--paired", "--json"]
     print(f"{name}: {' '.join(command)}", file=sys.stderr, flush=True)
     env = {**os.environ, "QDCNN_CACHE": str(cache)}
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _children_cpu()
     done = subprocess.run(command, env=env, stdout=subprocess.PIPE, text=True, check=False)
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, _children_cpu() - cpu
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
     light = [{k: v for k, v in item.items() if k not in BULKY} for item in lines]
     text = "".join(json.dumps(item) + "\n" for item in light)
     (out / f"{name}.jsonl").write_text(text, encoding="utf-8")
     if done.returncode != 0:
         print(f"{name}: exit {done.returncode}", file=sys.stderr)
-    return seconds
+    return seconds, cpu
 
 
 def measure(root: Path, out: Path, methods: list[str], cache: Path | None, threads: int) -> None:
@@ -88,7 +101,9 @@ def measure(root: Path, out: Path, methods: list[str], cache: Path | None, threa
     with tempfile.TemporaryDirectory() as scratch:
         where = cache or Path(scratch)
         for name, args in runs(root).items():
-            timing[f"{name}_seconds"] = round(run_one(name, args, out, where, common), 1)
+            wall, cpu = run_one(name, args, out, where, common)
+            timing[f"{name}_seconds"], timing[f"{name}_cpu_seconds"] = round(wall, 1), round(cpu, 1)
+    timing["load_average_after"] = os.getloadavg()
     (out / "timing.json").write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
 
 
@@ -155,7 +170,8 @@ def print_tables(out: Path) -> None:
     timing = json.loads((out / "timing.json").read_text(encoding="utf-8"))
     for name in ("leave-one-out", "real-sample"):
         results, comparisons = read(out / f"{name}.jsonl")
-        print(f"\n{name} ({timing.get(f'{name}_seconds')} s wall, measured):\n")
+        wall, cpu = timing.get(f"{name}_seconds"), timing.get(f"{name}_cpu_seconds")
+        print(f"\n{name} (measured: {wall} s wall, {cpu} s CPU):\n")
         print(table(results))
         print()
         print(difference_table(comparisons))
