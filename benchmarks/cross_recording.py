@@ -93,18 +93,34 @@ def run_one(
     return seconds, cpu
 
 
-def measure(root: Path, out: Path, methods: list[str], cache: Path | None, threads: int) -> None:
+def measure(args: argparse.Namespace) -> None:
+    """Run the chosen evaluations; each adds its times to ``timing.json`` when it ends."""
+    out, cache, methods = args.out, args.cache, args.methods.split(",")
     out.mkdir(parents=True, exist_ok=True)
-    common = ["--method", ",".join(methods), "--threads", str(threads), "--seeds", "1"]
-    timing: dict[str, Any] = {"methods": methods, "threads": threads, "cpus": os.cpu_count()}
-    timing["cold_cache"] = cache is None or not cache.exists() or not any(cache.iterdir())
+    common = ["--method", ",".join(methods), "--threads", str(args.threads), "--seeds", "1"]
+    chosen = {k: v for k, v in runs(args.data_root).items() if k in args.runs.split(",")}
     with tempfile.TemporaryDirectory() as scratch:
         where = cache or Path(scratch)
-        for name, args in runs(root).items():
-            wall, cpu = run_one(name, args, out, where, common)
-            timing[f"{name}_seconds"], timing[f"{name}_cpu_seconds"] = round(wall, 1), round(cpu, 1)
-    timing["load_average_after"] = os.getloadavg()
-    (out / "timing.json").write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
+        for name, run_args in chosen.items():
+            cold = not where.exists() or not any(where.iterdir())
+            wall, cpu = run_one(name, run_args, out, where, common)
+            _record(out / "timing.json", name, methods, args.threads, cold, wall, cpu)
+
+
+def _record(
+    path: Path, name: str, methods: list[str], threads: int, cold: bool, wall: float, cpu: float
+) -> None:
+    timing = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    timing[name] = {
+        "methods": methods,
+        "threads": threads,
+        "cpus": os.cpu_count(),
+        "cold_cache": cold,
+        "wall_seconds": round(wall, 1),
+        "cpu_seconds": round(cpu, 1),
+        "load_average_after": os.getloadavg(),
+    }
+    path.write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
 
 
 def read(path: Path) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
@@ -168,10 +184,9 @@ def labels_line(results: list[dict[str, Any]]) -> str:
 
 def print_tables(out: Path) -> None:
     timing = json.loads((out / "timing.json").read_text(encoding="utf-8"))
-    for name in ("leave-one-out", "real-sample"):
+    for name, t in timing.items():
         results, comparisons = read(out / f"{name}.jsonl")
-        wall, cpu = timing.get(f"{name}_seconds"), timing.get(f"{name}_cpu_seconds")
-        print(f"\n{name} (measured: {wall} s wall, {cpu} s CPU):\n")
+        print(f"\n{name} (measured: {t['wall_seconds']} s wall, {t['cpu_seconds']} s CPU):\n")
         print(table(results))
         print()
         print(difference_table(comparisons))
@@ -186,10 +201,11 @@ def main() -> None:
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--cache", type=Path, help="a lasting cache: a stopped run resumes")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--runs", default="leave-one-out,real-sample")
     parser.add_argument("--table", action="store_true", help="only print the tables")
     args = parser.parse_args()
     if not args.table:
-        measure(args.data_root, args.out, args.methods.split(","), args.cache, args.threads)
+        measure(args)
     print_tables(args.out)
 
 
