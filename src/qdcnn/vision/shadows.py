@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.centroid import propagate_centroid
+from qdcnn.quantum.centroid import propagate_centroid, propagation_fixed_point
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import as_generator, sample_probabilities
 from qdcnn.quantum.uu_dagger import (
@@ -43,6 +43,7 @@ from qdcnn.quantum.uu_dagger import (
     ry_state_table,
     value_to_angle,
 )
+from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadow_model_file import read_shadow_model, write_shadow_model
 
 FEATURES = ("intensity", "chromaticity")
@@ -175,11 +176,16 @@ def _block_sums(
     """Sum of the full-resolution ``values`` in each block and the block's pixel count.
 
     Both are flat, in row-major grid order; the sums are integers for integer
-    ``values`` (:func:`cv2.integral` of ``uint8`` is ``int32``).
+    ``values`` (:func:`cv2.integral` of ``uint8`` is ``int32``). The summed-area table
+    is read once at the ``(gh + 1) x (gw + 1)`` block corners; each block's sum is
+    ``bottom-right - top-right - bottom-left + top-left``, in that order.
     """
     corners, area = _cached_corners(geometry, values.shape[1], downsample)
-    at = cv2.integral(values).ravel().take(corners)  # (4, blocks)
-    return at[0] - at[1] - at[2] + at[3], area
+    at = cv2.integral(values).ravel().take(corners)  # (gh + 1, gw + 1)
+    sums = at[1:, 1:] - at[:-1, 1:]
+    sums -= at[1:, :-1]
+    sums += at[:-1, :-1]
+    return sums.ravel(), area
 
 
 def _cached_corners(
@@ -198,17 +204,9 @@ def _cached_corners(
 def _block_corners(
     width: int, r: NDArray[np.intp], c: NDArray[np.intp]
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Flat indices into a ``width + 1`` wide summed-area table of each block's four
-    corners (bottom-right, top-right, bottom-left, top-left) and the block areas."""
-    stride = width + 1
-    corners = np.stack(
-        [
-            r[1:, None] * stride + c[None, 1:],
-            r[:-1, None] * stride + c[None, 1:],
-            r[1:, None] * stride + c[None, :-1],
-            r[:-1, None] * stride + c[None, :-1],
-        ]
-    ).reshape(4, -1)
+    """Flat indices into a ``width + 1`` wide summed-area table of the block corners,
+    shape ``(len(r), len(c))``, and the block areas (flat)."""
+    corners = r[:, None] * (width + 1) + c[None, :]
     area = np.outer(np.diff(r), np.diff(c)).ravel().astype(np.float64)
     corners.setflags(write=False)
     area.setflags(write=False)
@@ -313,16 +311,16 @@ def extreme_cluster(
     bins, the maximum of the between-class variance, i.e. a deterministic
     ``classes``-means clustering of the values.
     """
-    from skimage.filters import threshold_multiotsu, threshold_otsu
-
     if pick not in ("lowest", "highest"):
         raise ParameterError("pick", pick, "'lowest' or 'highest'")
     v = np.asarray(values, dtype=np.float64).ravel()
-    if np.ptp(v) == 0:
+    if v.min() == v.max():
         return v
     if classes == 2:
-        t = float(threshold_otsu(v, nbins=256))
+        t = otsu_threshold(v, nbins=256)
         return v[v <= t] if pick == "lowest" else v[v > t]
+    from skimage.filters import threshold_multiotsu
+
     try:
         ts = threshold_multiotsu(v, classes=classes, nbins=_MULTI_OTSU_BINS)
     except ValueError:  # fewer distinct levels than classes: fall back to two classes
@@ -357,14 +355,16 @@ def calibrate_centroid(
     start = float(cluster.mean())
     counts = np.bincount(np.round(cluster / _CALIBRATION_BIN).astype(np.intp))
     levels = np.flatnonzero(counts)
-    res = propagate_centroid(
-        value_to_angle(levels * _CALIBRATION_BIN),
-        float(value_to_angle(start)),
-        iterations=cfg.propagation_iterations,
-        tol=cfg.propagation_tol,
-        weights=counts[levels],
-    )
-    return float(np.clip(angle_to_value(res.theta), 0.0, 255.0))
+    angles = value_to_angle(levels * _CALIBRATION_BIN)
+    weights = counts[levels].astype(np.float64)
+    theta0 = float(value_to_angle(start))
+    iterations, tol = cfg.propagation_iterations, cfg.propagation_tol
+    theta = propagation_fixed_point(angles, weights, theta0, iterations=iterations, tol=tol)
+    if theta is None:
+        theta = propagate_centroid(
+            angles, theta0, iterations=iterations, tol=tol, weights=weights
+        ).theta
+    return float(np.clip(angle_to_value(theta), 0.0, 255.0))
 
 
 @dataclass
