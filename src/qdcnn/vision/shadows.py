@@ -34,7 +34,7 @@ from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.centroid import propagate_centroid, propagation_fixed_point
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import as_generator, sample_probabilities
+from qdcnn.quantum.sampling import as_generator, binomial_counts
 from qdcnn.quantum.uu_dagger import (
     VALUE_SCALE,
     angle_to_value,
@@ -345,8 +345,12 @@ def calibrate_centroid(
     class of a 3- or 4-class multi-Otsu split (:func:`extreme_cluster`). The
     propagation algorithm then starts at that cluster's mean and runs on its
     block values, binned to :data:`_CALIBRATION_BIN` value units (a histogram
-    keeps each iteration independent of the image size). Returns the centroid
-    in value units.
+    keeps each iteration independent of the image size). Its fixed point is found
+    by Newton's method where the propagation provably converges to it within
+    ``config.propagation_iterations`` steps
+    (:func:`~qdcnn.quantum.centroid.propagation_fixed_point`; the centroid then
+    differs from the iterated one by less than ``config.propagation_tol``), and by
+    iterating otherwise. Returns the centroid in value units.
     """
     cfg = config or ShadowConfig()
     cluster = extreme_cluster(
@@ -580,8 +584,10 @@ def detect_shadows_uu(
     scores come from :func:`~qdcnn.quantum.uu_dagger.overlap_fidelity` with the
     test states looked up by block sum (:func:`state_lookup`): the same
     statevector result as simulating each block's circuit (tested to 1e-12, and
-    against Aer), without a cosine per block. Shots are then sampled from those
-    exact probabilities as :func:`~qdcnn.quantum.uu_dagger.fidelity` does.
+    against Aer), without a cosine per block. On the NumPy backend shots are then
+    drawn from the exact (or noisy) probabilities by :func:`sampled_scores`: the
+    binomial statistics of measuring each circuit ``shots`` times, from a faster
+    sampler than :func:`~qdcnn.quantum.uu_dagger.fidelity`'s (Aer samples its own).
     """
     cfg = config or ShadowConfig()
     if model is not None and model.is_multi:
@@ -600,11 +606,13 @@ def detect_shadows_uu(
         scores = fidelity(
             value_to_angle(centroid),
             value_to_angle(blocks.ravel()),
-            shots=cfg.shots,
+            shots=cfg.shots if backend == "aer" else None,
             backend=backend,
             noise=noise,
             rng=rng,
         )
+        if backend != "aer" and cfg.shots is not None:
+            scores = sampled_scores(scores, cfg.shots, rng)
     else:
         scores = _looked_up_scores(lookup, sums, centroid, cfg.shots, rng)
     scores = scores.reshape(blocks.shape)
@@ -648,10 +656,16 @@ def _looked_up_scores(
         lookup.cos_half.take(index),
         lookup.sin_half.take(index),
     )
-    if shots is not None:
-        exact = np.stack([scores, 1.0 - scores], axis=1)
-        scores = sample_probabilities(exact, shots, rng)[:, 0]
-    return scores
+    return scores if shots is None else sampled_scores(scores, shots, rng)
+
+
+def sampled_scores(
+    exact: NDArray[np.float64], shots: int, rng: int | np.random.Generator | None
+) -> NDArray[np.float64]:
+    """Shot estimates of the block scores ``P(0)``: the fraction of ``shots`` measurements
+    giving 0, drawn from their exact binomial distribution by
+    :func:`~qdcnn.quantum.sampling.binomial_counts`."""
+    return (shots - binomial_counts(1.0 - exact, shots, rng)) / float(shots)
 
 
 def _to_image_mask(
