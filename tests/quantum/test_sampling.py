@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from qdcnn.errors import ParameterError
+from qdcnn.quantum import sampling
 from qdcnn.quantum.circuits import uu_dagger_circuit, vqc_circuit
 from qdcnn.quantum.execute import run_probabilities
-from qdcnn.quantum import sampling
 from qdcnn.quantum.sampling import MAX_TABLE_SHOTS, binomial_counts, sample_counts
 from qdcnn.quantum.simulator import probabilities
 
@@ -173,4 +173,6 @@ def test_alias_tables_hold_the_binomial_probabilities() -> None:
         prob = np.zeros(shots + 1)
         np.add.at(prob, cells + shift[j], keep[cells] / w)
         np.add.at(prob, alias[cells], (1.0 - keep[cells]) / w)
-        np.testing.assert_allclose(prob, binom.pmf(np.arange(shots + 1), shots, j / sampling._GRID), atol=1e-12)
+        np.testing.assert_allclose(
+            prob, binom.pmf(np.arange(shots + 1), shots, j / sampling._GRID), atol=1e-12
+        )

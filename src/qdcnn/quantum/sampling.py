@@ -138,7 +138,9 @@ def _window_low(shots: int) -> NDArray[np.intp]:
 @lru_cache(maxsize=2)
 def _alias_tables(
     shots: int,
-) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.intp], NDArray[np.float64], NDArray[np.intp]]:
+) -> tuple[
+    NDArray[np.intp], NDArray[np.float64], NDArray[np.intp], NDArray[np.float64], NDArray[np.intp]
+]:
     """Joined alias tables of every row: start and width of each row's window of counts,
     the shift from a cell's joined index to its count, and per cell the probability of
     keeping its count and the count of its alias."""
