@@ -166,13 +166,16 @@ def test_alias_tables_hold_the_binomial_probabilities() -> None:
     from scipy.stats import binom
 
     shots = 64
-    start, width, shift, keep, alias = sampling._alias_tables(shots)
+    start, width, shift, table = sampling._alias_tables(shots)
     for j in (0, 1, 7, 100, sampling._GRID // 4, sampling._GRID // 2):
         lo, w = int(start[j]), int(width[j])
         cells = np.arange(lo, lo + w)
+        alias = np.floor(table[cells]).astype(np.intp)
+        keep = table[cells] - alias
+        assert ((keep >= 0) & (keep < 1)).all()
         prob = np.zeros(shots + 1)
-        np.add.at(prob, cells + shift[j], keep[cells] / w)
-        np.add.at(prob, alias[cells], (1.0 - keep[cells]) / w)
+        np.add.at(prob, cells + shift[j], keep / w)
+        np.add.at(prob, alias, (1.0 - keep) / w)
         np.testing.assert_allclose(
             prob, binom.pmf(np.arange(shots + 1), shots, j / sampling._GRID), atol=1e-12
         )
