@@ -91,6 +91,29 @@ def time_in_turns(
     return out
 
 
+def _aer_row(
+    frame: NDArray[np.uint8],
+    cfg: ShadowConfig,
+    blocks: int,
+    seed: int,
+    timings: dict[str, Timing],
+) -> dict[str, Any]:
+    """Per-block Aer time of one frame, and its ratios to the UU-dagger detectors."""
+    per_block, total = _aer_per_block_seconds(frame, cfg, blocks, seed)
+    per_frame = per_block * total
+    return {
+        "aer_per_block": {
+            "seconds_per_block": per_block,
+            "blocks_timed": min(blocks, total),
+            "seconds_per_frame": per_frame,
+            "note": "measured per block (one AerSimulator.run call, 1024 shots),"
+            " scaled to the frame's block count",
+        },
+        "ratio_aer_per_block_to_uu_shots": per_frame / timings["uu-1024-shots"].median_s,
+        "ratio_aer_per_block_to_uu_exact": per_frame / timings["uu-exact"].median_s,
+    }
+
+
 def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Callable[[Any], object]]:
     shots = replace(fixed, shots=1024)
     shots_calibrated = replace(calibrated, shots=1024)
@@ -166,22 +189,7 @@ def bench_shadows(
         }
         if aer_blocks > 0:
             say(f"{size} aer per block")
-            per_block, total = _aer_per_block_seconds(
-                images[0], replace(fixed, shots=1024), aer_blocks, seed
-            )
-            row["aer_per_block"] = {
-                "seconds_per_block": per_block,
-                "blocks_timed": min(aer_blocks, total),
-                "seconds_per_frame": per_block * total,
-                "note": "measured per block (one AerSimulator.run call, 1024 shots),"
-                " scaled to the frame's block count",
-            }
-            row["ratio_aer_per_block_to_uu_shots"] = (
-                per_block * total / timings["uu-1024-shots"].median_s
-            )
-            row["ratio_aer_per_block_to_uu_exact"] = (
-                per_block * total / timings["uu-exact"].median_s
-            )
+            row.update(_aer_row(images[0], replace(fixed, shots=1024), aer_blocks, seed, timings))
         ibt = timings["ibt"].median_s
         row["ratio_uu_exact_to_ibt"] = timings["uu-exact"].median_s / ibt
         row["ratios_to_ibt"] = {name: timings[name].median_s / ibt for name in IBT_TARGETS}
