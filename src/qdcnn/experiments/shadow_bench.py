@@ -92,11 +92,7 @@ def time_in_turns(
 
 
 def _aer_row(
-    frame: NDArray[np.uint8],
-    cfg: ShadowConfig,
-    blocks: int,
-    seed: int,
-    timings: dict[str, Timing],
+    frame: NDArray[np.uint8], cfg: ShadowConfig, timings: dict[str, Timing], blocks: int, seed: int
 ) -> dict[str, Any]:
     """Per-block Aer time of one frame, and its ratios to the UU-dagger detectors."""
     per_block, total = _aer_per_block_seconds(frame, cfg, blocks, seed)
@@ -189,7 +185,7 @@ def bench_shadows(
         }
         if aer_blocks > 0:
             say(f"{size} aer per block")
-            row.update(_aer_row(images[0], replace(fixed, shots=1024), aer_blocks, seed, timings))
+            row.update(_aer_row(images[0], replace(fixed, shots=1024), timings, aer_blocks, seed))
         ibt = timings["ibt"].median_s
         row["ratio_uu_exact_to_ibt"] = timings["uu-exact"].median_s / ibt
         row["ratios_to_ibt"] = {name: timings[name].median_s / ibt for name in IBT_TARGETS}
