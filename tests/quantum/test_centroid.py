@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from qdcnn.errors import ParameterError
-from qdcnn.quantum.centroid import kmeans_start, propagate_centroid, propagation_step
+from qdcnn.quantum.centroid import (
+    kmeans_start,
+    propagate_centroid,
+    propagation_fixed_point,
+    propagation_step,
+)
 
 
 @pytest.mark.parametrize("start", [0.1, 1.0, 2.9])
@@ -60,3 +65,33 @@ def test_bad_inputs() -> None:
         propagate_centroid([np.nan])
     with pytest.raises(ParameterError, match="iterations=0"):
         propagate_centroid([1.0], iterations=0)
+
+
+def _binned(rng: np.random.Generator, centre: float, spread: float) -> tuple[np.ndarray, ...]:
+    values = np.clip(rng.normal(centre, spread, 3000), 0, 255)
+    counts = np.bincount(np.round(values * 4).astype(np.intp))
+    levels = np.flatnonzero(counts)
+    return levels * 0.25 * np.pi / 255, counts[levels].astype(float), values.mean() * np.pi / 255
+
+
+@pytest.mark.parametrize(("centre", "spread"), [(40, 8), (90, 20), (128, 18), (200, 5)])
+def test_fixed_point_is_where_the_propagation_converges(
+    rng: np.random.Generator, centre: float, spread: float
+) -> None:
+    angles, weights, start = _binned(rng, centre, spread)
+    fast = propagation_fixed_point(angles, weights, start)
+    assert fast is not None
+    slow = propagate_centroid(angles, start, weights=weights)
+    assert slow.converged
+    assert fast == pytest.approx(slow.theta, abs=1e-8)
+    assert abs(propagation_step(fast, angles, weights)) < 1e-14  # the root itself
+
+
+def test_fixed_point_declines_when_the_propagation_may_not_reach_it(
+    rng: np.random.Generator,
+) -> None:
+    angles, weights, start = _binned(rng, 90, 20)
+    assert propagation_fixed_point(angles, weights, start, iterations=2) is None
+    wide = np.array([0.1, 1.0, 2.5])  # spread beyond 2 pi / 3: not known to contract
+    assert propagation_fixed_point(wide, np.ones(3), 1.2) is None
+    assert propagation_fixed_point(angles, weights, start + 1.0) is None  # too far a start

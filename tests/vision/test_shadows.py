@@ -375,3 +375,53 @@ def test_train_multi_checks_its_arguments(rng: np.random.Generator) -> None:
         train_multi_shadow_model([img], [np.zeros_like(truth)], EXACT)
     with pytest.raises(ParameterError, match="images/masks"):
         train_multi_shadow_model([img], [], EXACT)
+
+
+def _reference_detection(
+    image: np.ndarray, cfg: ShadowConfig
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """The detector as it was before the speed-up (issue 22): block sums from the four
+    corners of each block, scikit-image's Otsu split, the propagation iterated to its
+    tolerance, one cosine per block; returns centroid, block scores and mask."""
+    from skimage.filters import threshold_otsu
+
+    from qdcnn.quantum.centroid import propagate_centroid
+    from qdcnn.quantum.uu_dagger import fidelity, value_to_angle
+
+    grey = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+    geometry = block_grid(grey.shape, cfg.downsample, cfg.grid)
+    r, c = geometry.row_edges * cfg.downsample, geometry.col_edges * cfg.downsample
+    table = cv2.integral(grey).astype(np.float64)
+    sums = table[r[1:, None], c[None, 1:]] - table[r[:-1, None], c[None, 1:]]
+    sums = sums - table[r[1:, None], c[None, :-1]] + table[r[:-1, None], c[None, :-1]]
+    values = sums / np.outer(np.diff(r), np.diff(c))
+    v = values.ravel()
+    cluster = v[v <= float(threshold_otsu(v, nbins=256))]
+    counts = np.bincount(np.round(cluster / 0.25).astype(np.intp))
+    levels = np.flatnonzero(counts)
+    res = propagate_centroid(
+        value_to_angle(levels * 0.25),
+        float(value_to_angle(cluster.mean())),
+        iterations=cfg.propagation_iterations,
+        tol=cfg.propagation_tol,
+        weights=counts[levels],
+    )
+    centroid = float(np.clip(angle_to_value(res.theta), 0.0, 255.0))
+    scores = fidelity(value_to_angle(centroid), value_to_angle(v), shots=None)
+    block_mask = (scores >= cfg.threshold).reshape(values.shape)
+    mask = cv2.medianBlur(expand_blocks(block_mask, geometry).astype(np.uint8), cfg.median_ksize)
+    return centroid, scores.reshape(values.shape), mask.astype(bool)
+
+
+@pytest.mark.parametrize("size", [(320, 160), (1280, 720), (333, 187)])
+def test_calibrated_detector_equals_the_reference_implementation(size: tuple[int, int]) -> None:
+    from qdcnn.data.synthetic import generate_scenes
+
+    for track in ("track1", "track2"):
+        for scene in generate_scenes(track, 4, seed=5, width=size[0], height=size[1]):
+            centroid, scores, mask = _reference_detection(scene.image, EXACT)
+            ours = detect_shadows_uu(scene.image, EXACT)
+            assert ours.centroid_source == "calibrated"
+            assert ours.centroid == pytest.approx(centroid, abs=1e-6)
+            np.testing.assert_allclose(ours.block_scores, scores, rtol=0, atol=1e-9)
+            np.testing.assert_array_equal(ours.mask, mask)

@@ -26,7 +26,7 @@ def _say(silent: bool, prefix: str = "") -> Any:
 @bench_app.command("shadows")
 def bench_shadows_cmd(
     frames: Annotated[int, typer.Option(help="Synthetic track2 frames per size.")] = 5,
-    repeats: Annotated[int, typer.Option(help="Timed passes; the median is reported.")] = 5,
+    repeats: Annotated[int, typer.Option(help="Timed passes over the frames.")] = 5,
     aer_blocks: Annotated[
         int, typer.Option(help="Blocks timed one by one on Aer (0: skip).")
     ] = 200,
@@ -52,6 +52,7 @@ def bench_shadows_cmd(
         return
     for row in result["results"]:
         out.print(_shadow_table(row))
+        out.print(_ratio_line(row))
         if "ratio_aer_per_block_to_uu_shots" in row:
             ratio = row["ratio_aer_per_block_to_uu_shots"]
             out.print(f"per-block Aer / UU-dagger 1024 shots: {ratio:,.0f}x")
@@ -73,6 +74,17 @@ def _shadow_table(row: dict[str, Any]) -> Table:
             f"{aer['seconds_per_frame'] / ibt:.0f}",
         )
     return table
+
+
+def _ratio_line(row: dict[str, Any]) -> str:
+    """UU-dagger / IBT for each variant, beside its target (issue 22)."""
+    from qdcnn.experiments.shadow_bench import IBT_TARGETS
+
+    parts = [
+        f"{name.removeprefix('uu-')} {ratio:.2f}x (target {IBT_TARGETS[name]:g}x)"
+        for name, ratio in row["ratios_to_ibt"].items()
+    ]
+    return f"UU-dagger / IBT, {row['size']}: " + ", ".join(parts)
 
 
 def _estimate_table(estimates: list[dict[str, Any]]) -> Table:

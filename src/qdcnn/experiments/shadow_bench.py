@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from qdcnn._validation import check_int
 from qdcnn.config import ShadowConfig
 from qdcnn.quantum.hardware_time import PROFILES, estimate_time
-from qdcnn.runtime.timing import time_per_item
+from qdcnn.runtime.timing import Timing
 from qdcnn.vision.baselines import detect_cbs, detect_ibt, detect_lbp
 from qdcnn.vision.shadows import block_grid, detect_shadows_uu
 
@@ -64,6 +64,52 @@ def _aer_per_block_seconds(
     return float(np.median(samples[1:] or samples)), values.size
 
 
+def time_in_turns(
+    fns: dict[str, Callable[[Any], object]], items: list[Any], *, repeats: int = 3
+) -> dict[str, Timing]:
+    """Median time of one call of each function over ``repeats`` passes over ``items``.
+
+    The functions take turns on every item, so a change of machine load falls on all of
+    them alike, and the median of the single calls (not of whole passes) ignores the
+    calls that another process interrupted; their ratios stay comparable between runs on
+    a busy machine. Each function is first called once untimed.
+    """
+    for fn in fns.values():
+        fn(items[0])
+    samples: dict[str, list[float]] = {name: [] for name in fns}
+    clock = time.perf_counter
+    for _ in range(repeats):
+        for item in items:
+            for name, fn in fns.items():
+                t0 = clock()
+                fn(item)
+                samples[name].append(clock() - t0)
+    out = {}
+    for name, values in samples.items():
+        arr = np.asarray(values)
+        out[name] = Timing(name, float(np.median(arr)), float(arr.min()), float(arr.max()), repeats)
+    return out
+
+
+def _aer_row(
+    frame: NDArray[np.uint8], cfg: ShadowConfig, timings: dict[str, Timing], blocks: int, seed: int
+) -> dict[str, Any]:
+    """Per-block Aer time of one frame, and its ratios to the UU-dagger detectors."""
+    per_block, total = _aer_per_block_seconds(frame, cfg, blocks, seed)
+    per_frame = per_block * total
+    return {
+        "aer_per_block": {
+            "seconds_per_block": per_block,
+            "blocks_timed": min(blocks, total),
+            "seconds_per_frame": per_frame,
+            "note": "measured per block (one AerSimulator.run call, 1024 shots),"
+            " scaled to the frame's block count",
+        },
+        "ratio_aer_per_block_to_uu_shots": per_frame / timings["uu-1024-shots"].median_s,
+        "ratio_aer_per_block_to_uu_exact": per_frame / timings["uu-exact"].median_s,
+    }
+
+
 def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Callable[[Any], object]]:
     shots = replace(fixed, shots=1024)
     shots_calibrated = replace(calibrated, shots=1024)
@@ -75,6 +121,15 @@ def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Calla
         "ibt": detect_ibt,
         "cbs": detect_cbs,
     }
+
+
+#: UU-dagger variants whose time is reported as a ratio to IBT, with the issue-22 targets.
+IBT_TARGETS: dict[str, float] = {
+    "uu-exact": 1.0,
+    "uu-exact-calibrated": 1.0,
+    "uu-1024-shots": 1.5,
+    "uu-1024-shots-calibrated": 1.5,
+}
 
 
 def bench_shadows(
@@ -89,14 +144,18 @@ def bench_shadows(
 ) -> dict[str, Any]:
     """Time every detector per frame and report medians, ratios and labelled estimates.
 
+    The detectors take turns frame by frame and each reports the median of its single
+    calls (:func:`time_in_turns`), so a change of load during the run falls on all of
+    them alike and the ratios to IBT stay comparable between runs.
+
     Parameters
     ----------
     sizes : sequence of (width, height)
         Frame sizes (default 320x160 and 1280x720).
     frames : int
-        Synthetic frames per size; each timing is the mean per frame over them.
+        Synthetic frames per size.
     repeats : int
-        Passes over the frames; the median pass is reported.
+        Passes over the frames; each timing is the median of the ``frames * repeats`` calls.
     aer_blocks : int
         Block circuits timed one by one on Aer (0 skips Aer).
     """
@@ -113,37 +172,23 @@ def bench_shadows(
         if include_lbp:
             methods["lbp"] = detect_lbp
         size = f"{width}x{height}"
-        timings = {}
-        for name, fn in methods.items():
-            say(f"{size} {name}")
-            timings[name] = time_per_item(name, fn, images, repeats=repeats)
+        say(f"{size} {', '.join(methods)}")
+        timings = time_in_turns(methods, images, repeats=repeats)
         grid = block_grid((height, width), calibrated.downsample, calibrated.grid)
         n_blocks = grid.grid_shape[0] * grid.grid_shape[1]
         row: dict[str, Any] = {
             "size": size,
             "blocks": n_blocks,
             "frames": frames,
+            "repeats": repeats,
             "seconds": {k: t.median_s for k, t in timings.items()},
         }
         if aer_blocks > 0:
             say(f"{size} aer per block")
-            per_block, total = _aer_per_block_seconds(
-                images[0], replace(fixed, shots=1024), aer_blocks, seed
-            )
-            row["aer_per_block"] = {
-                "seconds_per_block": per_block,
-                "blocks_timed": min(aer_blocks, total),
-                "seconds_per_frame": per_block * total,
-                "note": "measured per block (one AerSimulator.run call, 1024 shots),"
-                " scaled to the frame's block count",
-            }
-            row["ratio_aer_per_block_to_uu_shots"] = (
-                per_block * total / timings["uu-1024-shots"].median_s
-            )
-            row["ratio_aer_per_block_to_uu_exact"] = (
-                per_block * total / timings["uu-exact"].median_s
-            )
-        row["ratio_uu_exact_to_ibt"] = timings["uu-exact"].median_s / timings["ibt"].median_s
+            row.update(_aer_row(images[0], replace(fixed, shots=1024), timings, aer_blocks, seed))
+        ibt = timings["ibt"].median_s
+        row["ratio_uu_exact_to_ibt"] = timings["uu-exact"].median_s / ibt
+        row["ratios_to_ibt"] = {name: timings[name].median_s / ibt for name in IBT_TARGETS}
         rows.append(row)
     estimates = [estimate_time(name).to_dict() for name in PROFILES]
     return {

@@ -32,9 +32,9 @@ from numpy.typing import NDArray
 
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.centroid import propagate_centroid
+from qdcnn.quantum.centroid import propagate_centroid, propagation_fixed_point
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import as_generator, sample_probabilities
+from qdcnn.quantum.sampling import as_generator, binomial_counts
 from qdcnn.quantum.uu_dagger import (
     VALUE_SCALE,
     angle_to_value,
@@ -43,6 +43,7 @@ from qdcnn.quantum.uu_dagger import (
     ry_state_table,
     value_to_angle,
 )
+from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadow_model_file import read_shadow_model, write_shadow_model
 
 FEATURES = ("intensity", "chromaticity")
@@ -175,11 +176,16 @@ def _block_sums(
     """Sum of the full-resolution ``values`` in each block and the block's pixel count.
 
     Both are flat, in row-major grid order; the sums are integers for integer
-    ``values`` (:func:`cv2.integral` of ``uint8`` is ``int32``).
+    ``values`` (:func:`cv2.integral` of ``uint8`` is ``int32``). The summed-area table
+    is read once at the ``(gh + 1) x (gw + 1)`` block corners; each block's sum is
+    ``bottom-right - top-right - bottom-left + top-left``, in that order.
     """
     corners, area = _cached_corners(geometry, values.shape[1], downsample)
-    at = cv2.integral(values).ravel().take(corners)  # (4, blocks)
-    return at[0] - at[1] - at[2] + at[3], area
+    at = cv2.integral(values).ravel().take(corners)  # (gh + 1, gw + 1)
+    sums = at[1:, 1:] - at[:-1, 1:]
+    sums -= at[1:, :-1]
+    sums += at[:-1, :-1]
+    return sums.ravel(), area
 
 
 def _cached_corners(
@@ -198,17 +204,9 @@ def _cached_corners(
 def _block_corners(
     width: int, r: NDArray[np.intp], c: NDArray[np.intp]
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Flat indices into a ``width + 1`` wide summed-area table of each block's four
-    corners (bottom-right, top-right, bottom-left, top-left) and the block areas."""
-    stride = width + 1
-    corners = np.stack(
-        [
-            r[1:, None] * stride + c[None, 1:],
-            r[:-1, None] * stride + c[None, 1:],
-            r[1:, None] * stride + c[None, :-1],
-            r[:-1, None] * stride + c[None, :-1],
-        ]
-    ).reshape(4, -1)
+    """Flat indices into a ``width + 1`` wide summed-area table of the block corners,
+    shape ``(len(r), len(c))``, and the block areas (flat)."""
+    corners = r[:, None] * (width + 1) + c[None, :]
     area = np.outer(np.diff(r), np.diff(c)).ravel().astype(np.float64)
     corners.setflags(write=False)
     area.setflags(write=False)
@@ -313,16 +311,16 @@ def extreme_cluster(
     bins, the maximum of the between-class variance, i.e. a deterministic
     ``classes``-means clustering of the values.
     """
-    from skimage.filters import threshold_multiotsu, threshold_otsu
-
     if pick not in ("lowest", "highest"):
         raise ParameterError("pick", pick, "'lowest' or 'highest'")
     v = np.asarray(values, dtype=np.float64).ravel()
-    if np.ptp(v) == 0:
+    if v.min() == v.max():
         return v
     if classes == 2:
-        t = float(threshold_otsu(v, nbins=256))
+        t = otsu_threshold(v, nbins=256)
         return v[v <= t] if pick == "lowest" else v[v > t]
+    from skimage.filters import threshold_multiotsu
+
     try:
         ts = threshold_multiotsu(v, classes=classes, nbins=_MULTI_OTSU_BINS)
     except ValueError:  # fewer distinct levels than classes: fall back to two classes
@@ -347,8 +345,12 @@ def calibrate_centroid(
     class of a 3- or 4-class multi-Otsu split (:func:`extreme_cluster`). The
     propagation algorithm then starts at that cluster's mean and runs on its
     block values, binned to :data:`_CALIBRATION_BIN` value units (a histogram
-    keeps each iteration independent of the image size). Returns the centroid
-    in value units.
+    keeps each iteration independent of the image size). Its fixed point is found
+    by Newton's method where the propagation provably converges to it within
+    ``config.propagation_iterations`` steps
+    (:func:`~qdcnn.quantum.centroid.propagation_fixed_point`; the centroid then
+    differs from the iterated one by less than ``config.propagation_tol``), and by
+    iterating otherwise. Returns the centroid in value units.
     """
     cfg = config or ShadowConfig()
     cluster = extreme_cluster(
@@ -357,14 +359,16 @@ def calibrate_centroid(
     start = float(cluster.mean())
     counts = np.bincount(np.round(cluster / _CALIBRATION_BIN).astype(np.intp))
     levels = np.flatnonzero(counts)
-    res = propagate_centroid(
-        value_to_angle(levels * _CALIBRATION_BIN),
-        float(value_to_angle(start)),
-        iterations=cfg.propagation_iterations,
-        tol=cfg.propagation_tol,
-        weights=counts[levels],
-    )
-    return float(np.clip(angle_to_value(res.theta), 0.0, 255.0))
+    angles = value_to_angle(levels * _CALIBRATION_BIN)
+    weights = counts[levels].astype(np.float64)
+    theta0 = float(value_to_angle(start))
+    iterations, tol = cfg.propagation_iterations, cfg.propagation_tol
+    theta = propagation_fixed_point(angles, weights, theta0, iterations=iterations, tol=tol)
+    if theta is None:
+        theta = propagate_centroid(
+            angles, theta0, iterations=iterations, tol=tol, weights=weights
+        ).theta
+    return float(np.clip(angle_to_value(theta), 0.0, 255.0))
 
 
 @dataclass
@@ -580,8 +584,10 @@ def detect_shadows_uu(
     scores come from :func:`~qdcnn.quantum.uu_dagger.overlap_fidelity` with the
     test states looked up by block sum (:func:`state_lookup`): the same
     statevector result as simulating each block's circuit (tested to 1e-12, and
-    against Aer), without a cosine per block. Shots are then sampled from those
-    exact probabilities as :func:`~qdcnn.quantum.uu_dagger.fidelity` does.
+    against Aer), without a cosine per block. On the NumPy backend shots are then
+    drawn from the exact (or noisy) probabilities by :func:`sampled_scores`: the
+    binomial statistics of measuring each circuit ``shots`` times, from a faster
+    sampler than :func:`~qdcnn.quantum.uu_dagger.fidelity`'s (Aer samples its own).
     """
     cfg = config or ShadowConfig()
     if model is not None and model.is_multi:
@@ -600,11 +606,13 @@ def detect_shadows_uu(
         scores = fidelity(
             value_to_angle(centroid),
             value_to_angle(blocks.ravel()),
-            shots=cfg.shots,
+            shots=cfg.shots if backend == "aer" else None,
             backend=backend,
             noise=noise,
             rng=rng,
         )
+        if backend != "aer" and cfg.shots is not None:
+            scores = sampled_scores(scores, cfg.shots, rng)
     else:
         scores = _looked_up_scores(lookup, sums, centroid, cfg.shots, rng)
     scores = scores.reshape(blocks.shape)
@@ -648,10 +656,16 @@ def _looked_up_scores(
         lookup.cos_half.take(index),
         lookup.sin_half.take(index),
     )
-    if shots is not None:
-        exact = np.stack([scores, 1.0 - scores], axis=1)
-        scores = sample_probabilities(exact, shots, rng)[:, 0]
-    return scores
+    return scores if shots is None else sampled_scores(scores, shots, rng)
+
+
+def sampled_scores(
+    exact: NDArray[np.float64], shots: int, rng: int | np.random.Generator | None
+) -> NDArray[np.float64]:
+    """Shot estimates of the block scores ``P(0)``: the fraction of ``shots`` measurements
+    giving 0, drawn from their exact binomial distribution by
+    :func:`~qdcnn.quantum.sampling.binomial_counts`."""
+    return (shots - binomial_counts(1.0 - exact, shots, rng)) / float(shots)
 
 
 def _to_image_mask(
