@@ -166,7 +166,7 @@ def _parsed_dims(dims: str) -> tuple[tuple[_Sizes, _Sizes | None], ...]:
     """The alternatives of ``dims``, each as the sizes before one ``*`` (``None`` for a
     named axis) and the sizes after it (``None`` when there is no ``*``): parsed once
     per text, as a check runs on every frame."""
-    out = []
+    out: list[tuple[_Sizes, _Sizes | None]] = []
     for alternative in dims.split("|"):
         names = [d.strip() for d in alternative.split(",") if d.strip()]
         sizes = [int(n) if n.isdigit() else None for n in names]
