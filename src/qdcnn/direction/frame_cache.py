@@ -101,9 +101,12 @@ def network_frames(
     """
     from qdcnn.models.preprocess import PreparedFrames
 
+    if not use_cache:  # nor a fingerprint: any source of frames will do
+        images, readable, failures = _decode_prepared(frames, spec)
+        return PreparedFrames(images, spec), readable, failures
     tell = on_note or (lambda _line: None)
     array_path, record_path = entry_paths(frames, spec)
-    if use_cache and record_path.exists():
+    if record_path.exists():
         try:
             images, readable, failures = _read_entry(array_path, record_path, len(frames), spec)
         except _BadEntry as exc:
@@ -113,8 +116,7 @@ def network_frames(
         else:
             return PreparedFrames(images, spec), readable, failures
     images, readable, failures = _decode_prepared(frames, spec)
-    if use_cache:
-        _write_entry(array_path, record_path, images, readable, failures, tell)
+    _write_entry(array_path, record_path, images, readable, failures, tell)
     return PreparedFrames(images, spec), readable, failures
 
 
