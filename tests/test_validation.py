@@ -109,3 +109,22 @@ def test_shape_checks_name_the_shape_given():
         check_shape("w", 1.0, "*,3", "three angles")
     with pytest.raises(InputError, match=r"^img: expected shape \(H, W\), got shape \(1, 2, 3\)$"):
         check_input_shape("img", np.zeros((1, 2, 3)), "H,W")
+
+
+def test_has_shape_reads_lists_and_tensors_like_arrays():
+    assert has_shape([[1, 2, 3]], "B,3") and not has_shape([[1, 2]], "B,3")
+    assert has_shape(np.float64(1.0), "") and has_shape([[[0, 0, 0]]], "H,W,3|H,W")
+
+
+def test_atomic_write_npy_reads_back_memory_mapped_and_refuses_objects(tmp_path):
+    from qdcnn._fileio import atomic_write_npy
+
+    data = np.arange(2 * 3 * 4, dtype=np.uint8).reshape(2, 3, 4)
+    path = atomic_write_npy(tmp_path / "sub" / "a.npy", data)
+    back = np.load(path, mmap_mode="r", allow_pickle=False)
+    assert isinstance(back, np.memmap) and back.dtype == np.uint8
+    np.testing.assert_array_equal(back, data)
+    assert sorted(p.name for p in path.parent.iterdir()) == ["a.npy"]  # no temporary left
+    with pytest.raises(TypeError, match="no Python objects"):
+        atomic_write_npy(tmp_path / "b.npy", np.array([{}], dtype=object))
+    assert not (tmp_path / "b.npy").exists()

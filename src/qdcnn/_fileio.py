@@ -14,10 +14,14 @@ from __future__ import annotations
 import os
 import secrets
 import stat
+from collections.abc import Callable
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, BinaryIO, TextIO
 
 from qdcnn.errors import InputError
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 
 def temporary_sibling(path: Path) -> Path:
@@ -77,10 +81,14 @@ def discard(path: Path) -> None:
         pass
 
 
-def _write_new_file(tmp: Path, data: bytes) -> None:
+def _write_new_file(tmp: Path, data: bytes | Callable[[BinaryIO], object]) -> None:
+    """Create ``tmp`` with ``data``, or with what ``data(file)`` writes to it, and flush it."""
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
     with os.fdopen(fd, "wb") as fh:
-        fh.write(data)
+        if isinstance(data, bytes):
+            fh.write(data)
+        else:
+            data(fh)
         fh.flush()
         os.fsync(fh.fileno())
 
@@ -99,8 +107,27 @@ def _sync_folder(folder: Path) -> None:
         os.close(fd)
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+def atomic_write_npy(path: str | os.PathLike[str], array: NDArray[Any]) -> Path:
+    """Write ``array`` as a ``.npy`` file (NumPy's format, no pickle) to ``path`` atomically,
+    streamed from the array (no copy of its bytes in memory); read it back with
+    ``np.load(path, mmap_mode="r", allow_pickle=False)``. Errors as :func:`atomic_write_bytes`.
+    """
+    import numpy as np  # not at import: the CLI starts without NumPy
+
+    arr = np.asarray(array)
+    if arr.dtype.hasobject:
+        raise TypeError("atomic_write_npy writes plain arrays only (no Python objects)")
+    return atomic_write_bytes(
+        path, lambda fh: np.lib.format.write_array(fh, arr, allow_pickle=False)
+    )
+
+
+def atomic_write_bytes(
+    path: str | os.PathLike[str], data: bytes | Callable[[BinaryIO], object]
+) -> Path:
     """Write ``data`` to ``path`` atomically; the folder is created if needed.
+
+    ``data`` is the bytes, or a function that writes them to the open binary file.
 
     The bytes go to a fresh temporary name beside ``path``, are flushed to disk and
     renamed over ``path``. A ``path`` that is a symbolic link is refused, never followed.

@@ -385,3 +385,22 @@ def test_train_noise_is_saved_by_label_in_model_headers() -> None:
     assert header["train_noise"] == {"noise": "phase-damping:0.25,readout:0.01"}
     back = UUDirectionClassifier().set_params(**_params_from_json(header))
     assert back.get_params() == params
+
+
+@pytest.mark.parametrize(
+    ("shots", "noise"), [(None, None), (1024, None), (1024, NoiseSpec("depolarizing", 0.2))]
+)
+def test_each_row_is_decided_as_if_alone(
+    rng: np.random.Generator, shots: int | None, noise: NoiseSpec | None
+) -> None:
+    X, y = road_slopes(60, rng)
+    X[:3, 1] = np.nan
+    clf = UUDirectionClassifier(shots=shots, seed=5, noise=noise).fit(X, y)
+    alone = [clf.predict_with_proba(X[i : i + 1]) for i in range(len(X))]
+    labels, proba = clf.predict_with_proba_each(X)
+    np.testing.assert_array_equal(labels, np.concatenate([a[0] for a in alone]))
+    np.testing.assert_array_equal(proba, np.concatenate([a[1] for a in alone]))
+    rows = np.concatenate([clf.circuit_probabilities(X[i : i + 1]) for i in range(len(X))])
+    np.testing.assert_array_equal(clf.circuit_probabilities_each(X), rows)
+    if shots is not None:  # one call on all rows shares one stream: not what a row gets alone
+        assert not np.array_equal(clf.circuit_probabilities(X)[3:], rows[3:])

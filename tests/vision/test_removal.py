@@ -141,3 +141,42 @@ def test_masked_channel_medians_equal_gathered_medians() -> None:
         np.testing.assert_array_equal(
             masked_channel_medians(pixels, mask), channel_medians(pixels[mask])
         )
+
+
+def _reference_removal(
+    image: np.ndarray, shadow: np.ndarray, region: np.ndarray, method: str
+) -> np.ndarray:
+    """The removal written plainly: numpy medians and boolean-index writes on the whole image."""
+    out = image.copy()
+    target, lit = shadow & region, region & ~shadow
+    if not target.any() or not lit.any():
+        return out
+    pixels = image.reshape(*image.shape[:2], -1)
+    view = out.reshape(pixels.shape)
+    lit_median = np.median(pixels[lit], axis=0)
+    if method == "road-fill":
+        view[target] = np.rint(lit_median).astype(np.uint8)
+    else:
+        gain = lit_median / np.maximum(np.median(pixels[target], axis=0), 1.0)
+        view[target] = np.clip(np.rint(pixels[target] * gain), 0, 255).astype(np.uint8)
+    return out
+
+
+@pytest.mark.parametrize("method", ["road-fill", "relight"])
+def test_removal_on_the_regions_rows_equals_the_plain_whole_image_removal(method: str) -> None:
+    from qdcnn.vision.roi import polygon_mask
+
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        h, w = (int(n) for n in rng.integers(2, 50, 2))
+        image = rng.integers(0, 256, (h, w, 3) if trial % 3 else (h, w), dtype=np.uint8)
+        shadow = rng.random((h, w)) < rng.uniform(0.1, 0.9)
+        x0, x1 = sorted(rng.uniform(0, 1, 2))
+        y0, y1 = sorted(rng.uniform(0, 1, 2))
+        region = (
+            polygon_mask((h, w), [(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+            if trial % 2
+            else rng.random((h, w)) < 0.5
+        )
+        got = remove_shadows(image, shadow, region, method=method)  # type: ignore[arg-type]
+        np.testing.assert_array_equal(got, _reference_removal(image, shadow, region, method))

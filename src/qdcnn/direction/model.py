@@ -106,6 +106,27 @@ class DirectionModel:
         labels, probs = both(self._as_inputs(inputs))
         return np.asarray(labels, dtype=np.int64), np.asarray(probs, dtype=np.float64)
 
+    def predict_with_proba_each(
+        self, inputs: ArrayLike
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64] | None]:
+        """:meth:`predict_with_proba` of every row as if called with that row alone.
+
+        One estimator call when it offers ``predict_with_proba_each`` (the UU-dagger rule:
+        all rows' circuits in one simulation, each row's shots from a generator seeded
+        afresh), else one call per row: a batch of video frames gets the decisions the
+        frames get one by one, whatever the batch.
+        """
+        x = self._as_inputs(inputs)
+        each = getattr(self.estimator, "predict_with_proba_each", None)
+        if each is not None:
+            labels, probs = each(x)
+            return np.asarray(labels, dtype=np.int64), np.asarray(probs, dtype=np.float64)
+        rows = [self.predict_with_proba(x[i : i + 1]) for i in range(len(x))]
+        labels = np.concatenate([r[0] for r in rows]) if rows else np.empty(0, np.int64)
+        if not rows or rows[0][1] is None:
+            return labels, None
+        return labels, np.concatenate([r[1] for r in rows if r[1] is not None])
+
     # ------------------------------------------------------------ persistence
 
     def save(self, path: str | os.PathLike[str]) -> Path:

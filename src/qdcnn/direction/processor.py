@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from qdcnn.errors import QdcnnError
 from qdcnn.runtime.chunks import FrameOutcome
 from qdcnn.vision.grouping import LaneFeatures
 from qdcnn.vision.overlays import (
@@ -110,23 +111,92 @@ class LaneDirectionProcessor:
         the same decision in any chunk or batch (and the same as ``qdcnn detect-lanes``);
         a call on many rows would share one stream of samples between them.
         """
+        frame, lanes = self._analyse(image, index)
+        labels, probs = self._decide(self._inputs(image, lanes))
+        return self._outcome(frame, lanes, int(labels[0]), None if probs is None else probs[0])
+
+    def process_batch(
+        self, images: Sequence[NDArray[np.uint8]], indices: Sequence[int]
+    ) -> list[FrameOutcome | QdcnnError]:
+        """:meth:`process` for many frames, with the same outcome per frame.
+
+        Shadows and lanes are found frame by frame (each with its own seeded sampler);
+        the decision is one classifier call on all the frames' lane features that gives
+        each frame what a call on it alone gives (the UU-dagger rule's circuits run once
+        for the batch, each frame's shots drawn as alone), else one call per frame.
+        A frame whose analysis fails gets its :class:`~qdcnn.errors.QdcnnError`.
+        """
+        found: list[tuple[Any, LaneFeatures] | QdcnnError] = []
+        for image, index in zip(images, indices, strict=True):
+            try:
+                found.append(self._analyse(image, index))
+            except QdcnnError as exc:
+                found.append(exc)
+        good = [i for i, f in enumerate(found) if not isinstance(f, QdcnnError)]
+        decisions = self._decide_many([self._inputs(images[i], found[i][1]) for i in good])  # type: ignore[index]
+        out: list[FrameOutcome | QdcnnError] = list(found)  # type: ignore[arg-type]
+        for i, (label, probs) in zip(good, decisions, strict=True):
+            if isinstance(label, QdcnnError):
+                out[i] = label
+            else:
+                frame, lanes = found[i]  # type: ignore[misc]
+                out[i] = self._outcome(frame, lanes, label, probs)
+        return out
+
+    def _analyse(self, image: NDArray[np.uint8], index: int) -> tuple[Any, LaneFeatures]:
+        """The pipeline's result for one frame (sampler seeded by ``(seed, index)``) and its
+        lane features under the model's grouping."""
         from qdcnn.pipeline import process_frame
 
         rng = np.random.default_rng([self.seed, index])
         frame = process_frame(image, self.config, (self.grouping,), rng=rng)
-        lanes = frame.lanes[self.grouping]
-        inputs = image[None] if self.reads_frames else np.atleast_2d(lanes.features)
-        probs = None
+        return frame, frame.lanes[self.grouping]
+
+    def _inputs(self, image: NDArray[np.uint8], lanes: LaneFeatures) -> NDArray[Any]:
+        """The classifier's input rows for one frame: the frame itself or its lane features."""
+        return image[None] if self.reads_frames else np.atleast_2d(lanes.features)
+
+    def _decide(self, inputs: NDArray[Any]) -> tuple[NDArray[np.int64], NDArray[np.float64] | None]:
+        """Labels and (when asked for) class probabilities of input rows, in one call."""
         if self.classes is None:
-            label = int(self.model.predict(inputs)[0])
-        else:
-            labels, scores = self.model.predict_with_proba(inputs)
-            label = int(labels[0])
-            probs = None if scores is None else tuple(float(p) for p in scores[0])
+            return self.model.predict(inputs), None
+        return self.model.predict_with_proba(inputs)
+
+    def _decide_many(
+        self, rows: list[NDArray[Any]]
+    ) -> list[tuple[int, NDArray[np.float64] | None] | tuple[QdcnnError, None]]:
+        """Label and probabilities per frame of ``rows`` (one input row each), each as
+        :meth:`process` decides it: one call for all lane rows
+        (:meth:`DirectionModel.predict_with_proba_each`), one call per frame otherwise or
+        when that call fails (so an error lands on its frame)."""
+        if rows and not self.reads_frames:
+            try:
+                labels, probs = self.model.predict_with_proba_each(np.concatenate(rows))
+            except QdcnnError:
+                pass
+            else:
+                probs = None if self.classes is None else probs
+                return [
+                    (int(labels[i]), None if probs is None else probs[i]) for i in range(len(rows))
+                ]
+        out: list[tuple[int, NDArray[np.float64] | None] | tuple[QdcnnError, None]] = []
+        for row in rows:
+            try:
+                labels, probs = self._decide(row)
+            except QdcnnError as exc:
+                out.append((exc, None))
+                continue
+            out.append((int(labels[0]), None if probs is None else probs[0]))
+        return out
+
+    def _outcome(
+        self, frame: Any, lanes: LaneFeatures, label: int, probs: NDArray[np.float64] | None
+    ) -> FrameOutcome:
         mask = frame.shadow_mask
         fraction = None if mask is None else float(np.count_nonzero(mask)) / mask.size
+        scores = None if probs is None else tuple(float(p) for p in probs)
         drawing = (frame.segments, lanes, mask)
-        return FrameOutcome(self._names[label], probs, fraction, lanes.status, drawing)
+        return FrameOutcome(self._names[label], scores, fraction, lanes.status, drawing)
 
     def draw(
         self, image: NDArray[np.uint8], outcome: FrameOutcome, decision: str | None

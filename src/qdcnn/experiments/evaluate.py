@@ -27,8 +27,9 @@ from qdcnn._optional import has_gpu, has_torch
 from qdcnn._validation import check_int
 from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
-from qdcnn.data.frames import FrameSet, load_frameset, stack_images
+from qdcnn.data.frames import FrameSet, load_frameset
 from qdcnn.data.labels import Quantile, check_labels_usable
+from qdcnn.direction.frame_cache import method_inputs
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
     DirectionMethod,
@@ -128,7 +129,10 @@ def evaluate_frames(
     validates on frames of those, never on the test block) and predicts the test block;
     a method with a grid (``hog-logreg``; the CNNs have none) chooses from it by the
     inner contiguous CV of ``inner_folds`` on the training frames. ``seeds`` and
-    ``use_cache`` as in :func:`evaluate_features`.
+    ``use_cache`` as in :func:`evaluate_features`; with ``use_cache`` a CNN's frames are
+    decoded and resized once per recording and input size
+    (:func:`qdcnn.direction.frame_cache.network_frames`) and read back by later methods
+    and runs.
 
     Returns
     -------
@@ -139,13 +143,18 @@ def evaluate_frames(
     m = get_method(method) if isinstance(method, str) else method
     cfg = config or PipelineConfig()
     opts = options or TrainingOptions()
-    images, readable, failures = stack_images(frames)
+    notes: list[str] = []
+    images, readable, failures = method_inputs(
+        m, cfg, opts, frames, use_cache=use_cache, on_note=notes.append
+    )
     keep = np.flatnonzero(readable)
     y = np.asarray(labels, dtype=np.int64)[keep]
     check_labels_usable(y, source=frames.spec)
-    run_seeds, notes = method_seeds(m, cfg, opts, seeds)
+    run_seeds, seed_notes = method_seeds(m, cfg, opts, seeds)
+    notes += seed_notes
     protocol = {"folds": folds, "gap": gap, "inner_folds": inner_folds}
-    cvs = _seeded_runs(m, cfg, opts, images[keep], y, protocol, run_seeds, executor, use_cache)
+    x = images if len(keep) == len(images) else images[keep]
+    cvs = _seeded_runs(m, cfg, opts, x, y, protocol, run_seeds, executor, use_cache)
     extra: dict[str, Any] = {
         "chosen_hyperparameters": cvs[0].chosen,
         "folds": folds,

@@ -93,7 +93,8 @@ def train_direction(
     shapes = {np.shape(x)[1:] for x, _, _ in parts}
     if len(shapes) > 1:
         raise InputError(", ".join(spec.specs), f"inputs of different sizes {sorted(shapes)}")
-    inputs = np.concatenate([x for x, _, _ in parts])
+    # one recording's frames pass as they are (prepared network inputs stay marked as such)
+    inputs = parts[0][0] if len(parts) == 1 else np.concatenate([x for x, _, _ in parts])
     y = np.concatenate([labels for _, labels, _ in parts])
     failures = [f for _, _, fs in parts for f in fs]
     if method.inputs == "lanes":  # as before: frame methods were never checked here
@@ -122,6 +123,7 @@ def _inputs(
     """Readable inputs (lane features or frames), their labels and the failures of ``frames``
     (a percentile label threshold is taken from all of ``train``)."""
     from qdcnn.data.frames import stack_images
+    from qdcnn.direction.frame_cache import method_inputs
     from qdcnn.direction.lane_data import load_lane_data
 
     method = get_method(spec.method)
@@ -138,7 +140,17 @@ def _inputs(
                 train=train,
             )
         return lanes.features(method.grouping), lanes.y, lanes.failures
-    images, readable, unreadable = stack_images(frames)
+    if len(train) == 1:  # decoded and resized once per recording for a CNN (cached)
+        images, readable, unreadable = method_inputs(
+            method,
+            spec.config,
+            spec.training,
+            frames,
+            use_cache=spec.use_cache,
+            on_note=report.note,
+        )
+    else:  # recordings of other frame sizes must still be refused together, as before
+        images, readable, unreadable = stack_images(frames)
     problems = [Failure(p.source, str(p)) for p in frames.problems]
     labels = frames.labels(spec.config.labels, train=train)
     return images[readable], labels[readable], problems + unreadable

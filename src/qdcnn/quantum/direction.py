@@ -80,6 +80,7 @@ from qdcnn.quantum._checks import check_fitted_models, check_noise, shared_noise
 from qdcnn.quantum.circuits import uu_dagger_circuit
 from qdcnn.quantum.execute import check_backend, run_probabilities
 from qdcnn.quantum.noise import NoiseSpec
+from qdcnn.quantum.sampling import sample_probabilities
 
 _ANGLE_MAPS: tuple[str, ...] = ("arctan", "minmax", "identity")
 N_CLASSES = len(DIRECTIONS)
@@ -474,6 +475,46 @@ class UUDirectionClassifier(ClassifierMixin, BaseEstimator):
             )[:, 0]
             out[ok] = np.stack([p0[:n], p0[n:]], axis=1)
         return out
+
+    def circuit_probabilities_each(self, X: ArrayLike) -> NDArray[np.float64]:
+        """:meth:`circuit_probabilities` of every row as if it were called with that row
+        alone: one exact simulation of all the rows' circuits, then (with shots) each row's
+        two circuits sampled from a generator seeded afresh with ``seed``, as a one-row
+        call samples them. The NumPy simulator computes each circuit on its own, so the
+        result equals the row-by-row calls; with another backend the rows are run one
+        call each.
+        """
+        check_is_fitted(self, "centroid_")
+        feats = check_feature_pairs(X, self.feature_columns, self.n_features_in_)
+        if self.backend != "numpy":
+            rows = [self.circuit_probabilities(feats[i : i + 1]) for i in range(len(feats))]
+            return np.concatenate(rows) if rows else np.full(feats.shape, np.nan)
+        out = np.full(feats.shape, np.nan)
+        ok = np.all(np.isfinite(feats), axis=1)
+        if ok.any():
+            theta = self.slope_angles(feats[ok])
+            n = theta.shape[0]
+            circuit = uu_dagger_circuit(self.centroid_, theta.T.ravel())
+            exact = run_probabilities(circuit, noise=self.noise)
+            pairs = np.stack([exact[:n], exact[n:]], axis=1)  # (n, 2 circuits, outcomes)
+            if self.shots is not None:
+                pairs = np.stack(
+                    [
+                        sample_probabilities(pair, self.shots, np.random.default_rng(self.seed))
+                        for pair in pairs
+                    ]
+                )
+            out[ok] = pairs[:, :, 0]
+        return out
+
+    def predict_with_proba_each(
+        self, X: ArrayLike
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """:meth:`predict_with_proba` of every row as if called with that row alone
+        (:meth:`circuit_probabilities_each`), for a batch of frames decided in one call."""
+        p = self.circuit_probabilities_each(X)
+        d = p[:, 0] - p[:, 1]
+        return self._labels(d), self._scores(d)
 
     def decision_function(
         self, X: ArrayLike, noise: NoiseSpec | None = None
