@@ -4,7 +4,7 @@ A reader never sees a half-written file: the bytes go to ``.<name>.<random>.tmp`
 beside the target, are flushed to disk, and :func:`os.replace` puts them in place
 in one step. A target that is a symbolic link is refused, so a pre-made link is
 never followed and its target never overwritten. Every :class:`OSError` becomes a
-one-line :class:`~qdcnn.errors.InputError` naming the path and the system's reason
+one-line :class:`~qdcnn.errors.OutputError` naming the path and the system's reason
 (read-only file system, no space left on device, permission denied, ...), and the
 clean-up of the temporary file never raises over it.
 """
@@ -17,7 +17,7 @@ import stat
 from pathlib import Path
 from typing import TextIO
 
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, OutputError
 
 
 def temporary_sibling(path: Path) -> Path:
@@ -42,7 +42,7 @@ _KINDS = {
 
 
 def refuse_non_regular(path: Path) -> None:
-    """Raise :class:`InputError` when ``path`` exists and is not a regular file.
+    """Raise :class:`OutputError` when ``path`` exists and is not a regular file.
 
     A symbolic link is refused whatever it points to (it is never followed); a device
     such as ``/dev/null`` is refused because a rename would replace the device itself.
@@ -52,21 +52,21 @@ def refuse_non_regular(path: Path) -> None:
     except FileNotFoundError:
         return
     except OSError as exc:
-        raise InputError(path, f"cannot write: {os_reason(exc)}") from None
+        raise OutputError(path, f"cannot write: {os_reason(exc)}") from None
     kind = stat.S_IFMT(mode)
     if kind != stat.S_IFREG:
-        raise InputError(path, _KINDS.get(kind, "is not a regular file"))
+        raise OutputError(path, _KINDS.get(kind, "is not a regular file"))
 
 
 def make_folder(folder: Path) -> None:
-    """Create ``folder`` and its parents (existing is fine); one-line :class:`InputError`
+    """Create ``folder`` and its parents (existing is fine); one-line :class:`OutputError`
     naming it and the reason when that is impossible (a file in the way, read-only, ...)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
-        raise InputError(folder, "cannot create folder: not a directory") from None
+        raise OutputError(folder, "cannot create folder: not a directory") from None
     except OSError as exc:
-        raise InputError(folder, f"cannot create folder: {os_reason(exc)}") from None
+        raise OutputError(folder, f"cannot create folder: {os_reason(exc)}") from None
 
 
 def discard(path: Path) -> None:
@@ -107,7 +107,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
     Raises
     ------
-    InputError
+    OutputError
         ``path`` is a folder, a symbolic link or a device, or the folder cannot be created or the
         file cannot be written (one line naming the path and the system's reason).
     """
@@ -120,7 +120,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
         os.replace(tmp, target)
     except OSError as exc:
         discard(tmp)
-        raise InputError(target, f"cannot write: {os_reason(exc)}") from None
+        raise OutputError(target, f"cannot write: {os_reason(exc)}") from None
     _sync_folder(target.parent)
     return target
 
@@ -138,7 +138,7 @@ class AtomicTextFile:
     errors : str
         The encoder's error handler (``"surrogateescape"`` keeps undecodable file names).
 
-    Every :class:`OSError` becomes a one-line :class:`InputError` naming ``path``.
+    Every :class:`OSError` becomes a one-line :class:`OutputError` naming ``path``.
     """
 
     def __init__(
@@ -156,7 +156,7 @@ class AtomicTextFile:
         try:
             fd = os.open(self.partial, flags, 0o644)
         except OSError as exc:
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
         self._fh: TextIO | None = os.fdopen(fd, "w", encoding="utf-8", newline="", errors=errors)
 
     def write(self, text: str) -> int:
@@ -165,14 +165,14 @@ class AtomicTextFile:
         try:
             return self._fh.write(text)
         except OSError as exc:
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
 
     def flush(self) -> None:
         if self._fh is not None:
             try:
                 self._fh.flush()
             except OSError as exc:
-                raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+                raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
 
     def commit(self) -> Path:
         """Flush to disk and rename onto ``path``; returns ``path``."""
@@ -189,7 +189,7 @@ class AtomicTextFile:
             self.abort()
             if isinstance(exc, InputError):
                 raise
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
         _sync_folder(self.path.parent)
         return self.path
 
