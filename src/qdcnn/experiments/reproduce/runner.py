@@ -170,11 +170,14 @@ def prepare_output(spec: ReproduceSpec) -> dict[str, Section]:
 
 
 def _remove_report_files(out: Path) -> None:
+    """Remove the report of an earlier run; a link in the way is removed, never followed."""
     try:
         for name in ("index.html", "report.json"):
             (out / name).unlink(missing_ok=True)
         for folder in ("figures", "sections"):
-            if (out / folder).is_dir():
+            if (out / folder).is_symlink():
+                (out / folder).unlink()
+            elif (out / folder).is_dir():
                 shutil.rmtree(out / folder)
     except OSError as exc:
         raise InputError(out, f"cannot remove the old report: {os_reason(exc)}") from None
