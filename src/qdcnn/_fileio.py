@@ -11,7 +11,9 @@ clean-up of the temporary file never raises over it.
 
 from __future__ import annotations
 
+import fcntl
 import os
+import re
 import secrets
 import stat
 from pathlib import Path
@@ -77,12 +79,50 @@ def discard(path: Path) -> None:
         pass
 
 
-def _write_new_file(tmp: Path, data: bytes) -> None:
+#: Names :func:`temporary_sibling` makes (with an optional kept suffix).
+TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
+
+
+def _write_and_replace(tmp: Path, data: bytes, target: Path) -> None:
+    """Write ``tmp`` and rename it onto ``target``, holding an ``flock`` on it throughout,
+    so :func:`remove_dead_temporaries` never takes a live writer's file for a dead one's."""
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
     with os.fdopen(fd, "wb") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
+        os.replace(tmp, target)
+
+
+def remove_dead_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files in ``folder`` whose writer has died (``kill -9``); returns them.
+
+    For shared folders written without a folder lock (the caches): a temporary file is a
+    dead writer's when its ``flock`` can be taken (the kernel drops a writer's lock when it
+    dies). Never raises. A writer that opened its file but has not locked it yet may lose it;
+    its rename then fails, which a cache reports as an entry not written.
+    """
+    removed = []
+    try:
+        names = [n for n in os.listdir(folder) if TEMPORARY_NAME.match(n)]
+    except OSError:
+        return removed
+    for name in names:
+        path = folder / name
+        try:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | os.O_NONBLOCK)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            path.unlink()
+            removed.append(path)
+        except OSError:
+            pass  # a live writer holds it, or it is already gone
+        finally:
+            os.close(fd)
+    return removed
 
 
 def _sync_folder(folder: Path) -> None:
@@ -116,8 +156,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     make_folder(target.parent)
     tmp = temporary_sibling(target)
     try:
-        _write_new_file(tmp, data)
-        os.replace(tmp, target)
+        _write_and_replace(tmp, data, target)
     except OSError as exc:
         discard(tmp)
         raise OutputError(target, f"cannot write: {os_reason(exc)}") from None

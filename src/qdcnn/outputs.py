@@ -34,7 +34,6 @@ import fcntl
 import hashlib
 import json
 import os
-import re
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -43,13 +42,11 @@ from typing import Any, Literal
 
 from qdcnn import __version__
 from qdcnn._closing import ClosesOnExit
-from qdcnn._fileio import os_reason, temporary_sibling
+from qdcnn._fileio import TEMPORARY_NAME, os_reason, temporary_sibling
 from qdcnn.errors import InputError, OutputError, ParameterError
 
 LOCK_NAME = ".qdcnn.lock"
 _MANIFEST_DIR = ".qdcnn-manifest"
-#: Names :func:`qdcnn._fileio.temporary_sibling` makes (with an optional kept suffix).
-_TEMP_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_NOFOLLOW", 0)
 Status = Literal["complete", "missing", "stale"]
 
@@ -450,7 +447,7 @@ class OutputFolder(ClosesOnExit):
         for folder, dirs, files in os.walk(self.root, followlinks=False):
             dirs[:] = [d for d in dirs if not os.path.islink(os.path.join(folder, d))]
             for name in files:
-                if _TEMP_NAME.match(name):
+                if TEMPORARY_NAME.match(name):
                     path = Path(folder) / name
                     try:
                         path.unlink()

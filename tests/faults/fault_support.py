@@ -234,7 +234,7 @@ def output_path(command: Command, folder: Path) -> Path:
 # ---------------------------------------------------------------------------- running
 #: The sections ``reproduce`` and ``demo`` compute here: fast ones that succeed on 20 frames
 #: and write a figure each (all eleven take a minute; the report's own writes are the same).
-REPRODUCE_SECTIONS = ("table-iv", "fig-2", "fig-3", "shadows")
+REPRODUCE_SECTIONS = ("table-iv", "fig-2", "fig-3")
 
 
 @contextmanager
@@ -296,6 +296,26 @@ def assert_one_error_text(returncode: int, stderr: str, exit_code: int = 2) -> s
     return lines[0]
 
 
+def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
+    """Run ``qdcnn ARGS`` in a forked copy of this process (its imports done, so the work
+    starts at once) and SIGKILL it ``after`` seconds; False when it ended first."""
+    pid = os.fork()
+    if pid == 0:  # the child: run the command, never return into pytest
+        code = 70
+        try:
+            code = invoke(args, cache=cache).exit_code
+        finally:
+            os._exit(code)
+    deadline = time.monotonic() + after
+    while time.monotonic() < deadline:
+        if os.waitpid(pid, os.WNOHANG) != (0, 0):
+            return False
+        time.sleep(0.005)
+    os.kill(pid, signal.SIGKILL)
+    os.waitpid(pid, 0)
+    return True
+
+
 def subprocess_env(cache: Path) -> dict[str, str]:
     """The environment of a ``qdcnn`` process of the fault suite (its own cache)."""
     here = Path(__file__).resolve().parent
@@ -352,6 +372,11 @@ def finish(args: list[str], *, env: dict[str, str]) -> subprocess.CompletedProce
 
 #: Keys of JSON results that hold measured times (they differ between any two runs).
 _TIMING_KEY = re.compile(r"second|(^|_)ms(_|$)|time|per_s|fps|created", re.IGNORECASE)
+
+
+def is_timing(key: str) -> bool:
+    """Whether a field or array named ``key`` holds measured times or dates."""
+    return bool(_TIMING_KEY.search(key))
 
 
 def timeless(value: object) -> object:
