@@ -103,7 +103,7 @@ def remove_dead_temporaries(folder: Path) -> list[Path]:
     dies). Never raises. A writer that opened its file but has not locked it yet may lose it;
     its rename then fails, which a cache reports as an entry not written.
     """
-    removed = []
+    removed: list[Path] = []
     try:
         names = [n for n in os.listdir(folder) if TEMPORARY_NAME.match(n)]
     except OSError:
