@@ -13,7 +13,9 @@ synthetic spec) so the whole suite runs in a few minutes on two loaded cores.
 
 from __future__ import annotations
 
+import csv
 import errno
+import io
 import json
 import os
 import re
@@ -21,13 +23,14 @@ import shutil
 import signal
 import stat
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from fnmatch import fnmatch
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner, Result
 
@@ -287,15 +290,6 @@ def assert_one_error(res: Result, exit_code: int = 2, *names: str) -> str:
     return lines[0]
 
 
-def assert_one_error_text(returncode: int, stderr: str, exit_code: int = 2) -> str:
-    """:func:`assert_one_error` for a subprocess's exit status and stderr."""
-    assert "Traceback" not in stderr, stderr
-    assert returncode == exit_code, stderr
-    lines = error_lines(stderr)
-    assert len(lines) == 1, stderr
-    return lines[0]
-
-
 def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
     """Run ``qdcnn ARGS`` in a forked copy of this process (its imports done, so the work
     starts at once) and SIGKILL it ``after`` seconds; False when it ended first."""
@@ -316,38 +310,6 @@ def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
     return True
 
 
-def subprocess_env(cache: Path) -> dict[str, str]:
-    """The environment of a ``qdcnn`` process of the fault suite (its own cache)."""
-    here = Path(__file__).resolve().parent
-    paths = [str(here.parents[1] / "src"), str(here), os.environ.get("PYTHONPATH", "")]
-    return {**os.environ, "QDCNN_CACHE": str(cache), "PYTHONPATH": os.pathsep.join(paths)}
-
-
-#: ``python -m qdcnn`` with :func:`few_reproduce_sections` (needs :func:`subprocess_env`).
-LAUNCH = (
-    "import sys; from fault_support import few_reproduce_sections; from qdcnn.cli import main\n"
-    "with few_reproduce_sections(): main()"
-)
-
-
-def qdcnn_argv(args: list[str]) -> list[str]:
-    """The argument vector of a ``qdcnn ARGS`` process (``reproduce``/``demo``: fewer sections)."""
-    if args[0] in ("reproduce", "demo"):
-        return [sys.executable, "-c", LAUNCH, *args]
-    return [sys.executable, "-m", "qdcnn", *args]
-
-
-def start(args: list[str], *, env: dict[str, str]) -> subprocess.Popen[bytes]:
-    """``qdcnn ARGS`` in its own session (so a kill reaches only it)."""
-    return subprocess.Popen(
-        qdcnn_argv(args),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        env=env,
-        start_new_session=True,
-    )
-
-
 def kill_when(
     proc: subprocess.Popen[bytes], ready: Callable[[], bool], timeout: float = 300
 ) -> bool:
@@ -361,13 +323,6 @@ def kill_when(
         time.sleep(0.01)
     proc.communicate()
     return False
-
-
-def finish(args: list[str], *, env: dict[str, str]) -> subprocess.CompletedProcess[bytes]:
-    """Run ``qdcnn ARGS`` to the end; it must exit 0."""
-    proc = subprocess.run(qdcnn_argv(args), capture_output=True, env=env, timeout=600)
-    assert proc.returncode == 0, proc.stderr.decode()
-    return proc
 
 
 #: Keys of JSON results that hold measured times (they differ between any two runs).
@@ -463,3 +418,56 @@ def make_null_device(path: Path) -> Path:
     except (OSError, AttributeError) as exc:
         pytest.skip(f"cannot make a device node: {exc}")
     return path
+
+
+# ---------------------------------------------------------------------------- comparing
+#: Files whose contents hold measured times (compared apart from them).
+TIMED = {
+    "run": ("summary.json", "*/timings.csv", ".qdcnn-manifest/*"),
+    "reproduce": ("index.html", "report.json", "sections/*.json"),
+}
+
+
+def outputs_of(command: Command, out: Path, cache: Path) -> dict[str, bytes]:
+    """What ``command`` left (the cache for a cache command), with ``out`` written ``<out>``."""
+    root = cache if command.output == "cache" else out
+    if not root.exists():
+        return {}
+    found = snapshot(root)
+    return {rel: data.replace(str(root).encode(), b"<out>") for rel, data in found.items()}
+
+
+def same_output(command: Command, rel: str, got: bytes, want: bytes) -> bool:
+    if got == want:
+        return True
+    if rel.endswith(".json"):
+        if timeless(json.loads(got)) == timeless(json.loads(want)):
+            return True
+    if rel.endswith(".npz"):  # a zip holds its members' dates: compare the arrays
+        return same_arrays(got, want)
+    if not any(fnmatch(rel, pattern) for pattern in TIMED.get(command.name, ())):
+        return False
+    return is_whole(rel, got, want)
+
+
+def same_arrays(got: bytes, want: bytes) -> bool:
+    with np.load(io.BytesIO(got)) as a, np.load(io.BytesIO(want)) as b:
+        kept = [k for k in a if not is_timing(k)]
+        return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in kept)
+
+
+def is_whole(rel: str, got: bytes, want: bytes) -> bool:
+    """``got`` is a complete file of ``want``'s kind (times may differ)."""
+    if rel.endswith(".json"):
+        return set(json.loads(got)) == set(json.loads(want))
+    if rel.endswith(".csv"):
+        rows = [list(csv.reader(io.StringIO(d.decode()))) for d in (got, want)]
+        return [r[0] for r in rows[0]] == [r[0] for r in rows[1]]
+    return got.rstrip().endswith(b"</html>")
+
+
+def assert_whole(command: Command, left: dict[str, bytes], reference: dict[str, bytes]) -> None:
+    """Every file in ``left`` that ``reference`` also has equals it (or is whole, if timed)."""
+    for rel, data in left.items():
+        if rel in reference:
+            assert same_output(command, rel, data, reference[rel]), rel

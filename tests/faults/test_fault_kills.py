@@ -16,13 +16,9 @@ processes at points chosen by the files they have written.)
 
 from __future__ import annotations
 
-import csv
 import fcntl
-import io
-import json
 import time
 import zlib
-from fnmatch import fnmatch
 from pathlib import Path
 
 import numpy as np
@@ -32,73 +28,22 @@ from fault_support import (
     COMMANDS,
     Command,
     Inputs,
+    assert_whole,
     build_inputs,
     invoke_ok,
-    is_timing,
     json_results,
     kill_forked,
     output_path,
-    snapshot,
+    outputs_of,
     temporaries,
-    timeless,
 )
 
-#: Files whose contents hold measured times (compared apart from them).
-TIMED = {
-    "run": ("summary.json", "*/timings.csv", ".qdcnn-manifest/*"),
-    "reproduce": ("index.html", "report.json", "sections/*.json"),
-}
 KILLS = 2
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> Inputs:
     return build_inputs(tmp_path_factory)
-
-
-def _outputs(command: Command, out: Path, cache: Path) -> dict[str, bytes]:
-    """What ``command`` left (the cache for a cache command), with ``out`` written ``<out>``."""
-    root = cache if command.output == "cache" else out
-    if not root.exists():
-        return {}
-    found = snapshot(root)
-    return {rel: data.replace(str(root).encode(), b"<out>") for rel, data in found.items()}
-
-
-def _same(command: Command, rel: str, got: bytes, want: bytes) -> bool:
-    if got == want:
-        return True
-    if rel.endswith(".json"):
-        if timeless(json.loads(got)) == timeless(json.loads(want)):
-            return True
-    if rel.endswith(".npz"):  # a zip holds its members' dates: compare the arrays
-        return _same_arrays(got, want)
-    if not any(fnmatch(rel, pattern) for pattern in TIMED.get(command.name, ())):
-        return False
-    return _whole(rel, got, want)
-
-
-def _same_arrays(got: bytes, want: bytes) -> bool:
-    with np.load(io.BytesIO(got)) as a, np.load(io.BytesIO(want)) as b:
-        kept = [k for k in a if not is_timing(k)]
-        return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in kept)
-
-
-def _whole(rel: str, got: bytes, want: bytes) -> bool:
-    """``got`` is a complete file of ``want``'s kind (times may differ)."""
-    if rel.endswith(".json"):
-        return set(json.loads(got)) == set(json.loads(want))
-    if rel.endswith(".csv"):
-        rows = [list(csv.reader(io.StringIO(d.decode()))) for d in (got, want)]
-        return [r[0] for r in rows[0]] == [r[0] for r in rows[1]]
-    return got.rstrip().endswith(b"</html>")
-
-
-def _assert_whole(command: Command, left: dict[str, bytes], reference: dict[str, bytes]) -> None:
-    """Every file a killed run left that the reference also has is whole."""
-    for rel, data in left.items():
-        if rel in reference:
-            assert _same(command, rel, data, reference[rel]), rel
 
 
 def _rerun_args(command: Command, inputs: Inputs, out: Path) -> list[str]:
@@ -115,19 +60,19 @@ def test_killed_then_rerun_equals_an_uninterrupted_run(
     t0 = time.monotonic()
     reference_run = invoke_ok(command.args(inputs, ref_out), cache=ref_cache)
     duration = time.monotonic() - t0
-    reference = _outputs(command, ref_out, ref_cache)
+    reference = outputs_of(command, ref_out, ref_cache)
     assert reference
 
     out, cache = output_path(command, tmp_path / "run"), tmp_path / "cache"
     for i, share in enumerate(rng.uniform(0.2, 1.0, KILLS)):
         args = command.args(inputs, out) if i == 0 else _rerun_args(command, inputs, out)
         kill_forked(args, cache=cache, after=share * duration)
-        _assert_whole(command, _outputs(command, out, cache), reference)
+        assert_whole(command, outputs_of(command, out, cache), reference)
     final = invoke_ok(_rerun_args(command, inputs, out), cache=cache)
     assert not temporaries(out.parent) and not temporaries(cache)
-    got = _outputs(command, out, cache)
+    got = outputs_of(command, out, cache)
     assert set(got) == set(reference)
-    _assert_whole(command, got, reference)
+    assert_whole(command, got, reference)
     if command.output == "cache":
         assert json_results(final.stdout) == json_results(reference_run.stdout)
 
