@@ -290,9 +290,9 @@ def assert_one_error(res: Result, exit_code: int = 2, *names: str) -> str:
     return lines[0]
 
 
-def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
-    """Run ``qdcnn ARGS`` in a forked copy of this process (its imports done, so the work
-    starts at once) and SIGKILL it ``after`` seconds; False when it ended first."""
+def fork_command(args: list[str], *, cache: Path) -> int:
+    """Start ``qdcnn ARGS`` in a forked copy of this process (its imports done, so the work
+    starts at once); returns its pid. Its exit status is the command's."""
     pid = os.fork()
     if pid == 0:  # the child: run the command, never return into pytest
         code = 70
@@ -300,6 +300,12 @@ def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
             code = invoke(args, cache=cache).exit_code
         finally:
             os._exit(code)
+    return pid
+
+
+def kill_forked(args: list[str], *, cache: Path, after: float) -> bool:
+    """:func:`fork_command` and SIGKILL it ``after`` seconds; False when it ended first."""
+    pid = fork_command(args, cache=cache)
     deadline = time.monotonic() + after
     while time.monotonic() < deadline:
         if os.waitpid(pid, os.WNOHANG) != (0, 0):

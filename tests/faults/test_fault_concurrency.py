@@ -22,6 +22,7 @@ from fault_support import (
     assert_one_error,
     assert_whole,
     build_inputs,
+    fork_command,
     invoke,
     invoke_ok,
     json_results,
@@ -35,17 +36,6 @@ FOLDERS = [c for c in COMMANDS if c.output == "folder"]
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> Inputs:
     return build_inputs(tmp_path_factory)
-
-
-def _fork(args: list[str], cache: Path) -> int:
-    pid = os.fork()
-    if pid == 0:  # the child: run the command, never return into pytest
-        code = 70
-        try:
-            code = invoke(args, cache=cache).exit_code
-        finally:
-            os._exit(code)
-    return pid
 
 
 def _stop_once_locked(pid: int, out: Path, timeout: float = 300) -> None:
@@ -82,7 +72,7 @@ def test_a_second_command_into_a_locked_folder_is_refused(
     invoke_ok(first.args(inputs, tmp_path / "ref"), cache=tmp_path / "cache")
     reference = outputs_of(first, tmp_path / "ref", tmp_path)
     out = tmp_path / "out"
-    pid = _fork(first.args(inputs, out), tmp_path / "cache")
+    pid = fork_command(first.args(inputs, out), cache=tmp_path / "cache")
     try:
         _stop_once_locked(pid, out)
         before = snapshot(out)
@@ -101,7 +91,7 @@ def test_a_second_command_into_a_locked_folder_is_refused(
 def test_two_commands_sharing_a_cache_both_finish(inputs: Inputs, tmp_path: Path) -> None:
     evaluate, cache = BY_NAME["evaluate"], tmp_path / "cache"
     expected = invoke_ok(evaluate.args(inputs, tmp_path), cache=tmp_path / "ref-cache")
-    pid = _fork(evaluate.args(inputs, tmp_path), cache)
+    pid = fork_command(evaluate.args(inputs, tmp_path), cache=cache)
     res = invoke_ok(evaluate.args(inputs, tmp_path), cache=cache)
     _, status = os.waitpid(pid, 0)
     assert os.waitstatus_to_exitcode(status) == 0
