@@ -13,11 +13,11 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.faults.fault_support import kill_when
 
 from qdcnn.data.images import read_image, read_mask, write_image
 
@@ -32,21 +32,6 @@ def qdcnn(*args: str, env: dict[str, str]) -> subprocess.Popen[bytes]:
         env=env,
         start_new_session=True,
     )
-
-
-def kill_when(
-    proc: subprocess.Popen[bytes], ready: Callable[[], bool], timeout: float = 120
-) -> bool:
-    """SIGKILL ``proc`` once ``ready()``; False when it ended first."""
-    t0 = time.monotonic()
-    while proc.poll() is None and time.monotonic() - t0 < timeout:
-        if ready():
-            os.kill(proc.pid, signal.SIGKILL)
-            proc.wait()
-            return True
-        time.sleep(0.02)
-    proc.wait()
-    return False
 
 
 def finish(*args: str, env: dict[str, str]) -> None:

@@ -4,21 +4,23 @@ A reader never sees a half-written file: the bytes go to ``.<name>.<random>.tmp`
 beside the target, are flushed to disk, and :func:`os.replace` puts them in place
 in one step. A target that is a symbolic link is refused, so a pre-made link is
 never followed and its target never overwritten. Every :class:`OSError` becomes a
-one-line :class:`~qdcnn.errors.InputError` naming the path and the system's reason
+one-line :class:`~qdcnn.errors.OutputError` naming the path and the system's reason
 (read-only file system, no space left on device, permission denied, ...), and the
 clean-up of the temporary file never raises over it.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
+import re
 import secrets
 import stat
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO, TextIO
 
-from qdcnn.errors import InputError
+from qdcnn.errors import InputError, OutputError
 
 if TYPE_CHECKING:
     from numpy.typing import NDArray
@@ -46,7 +48,7 @@ _KINDS = {
 
 
 def refuse_non_regular(path: Path) -> None:
-    """Raise :class:`InputError` when ``path`` exists and is not a regular file.
+    """Raise :class:`OutputError` when ``path`` exists and is not a regular file.
 
     A symbolic link is refused whatever it points to (it is never followed); a device
     such as ``/dev/null`` is refused because a rename would replace the device itself.
@@ -56,21 +58,21 @@ def refuse_non_regular(path: Path) -> None:
     except FileNotFoundError:
         return
     except OSError as exc:
-        raise InputError(path, f"cannot write: {os_reason(exc)}") from None
+        raise OutputError(path, f"cannot write: {os_reason(exc)}") from None
     kind = stat.S_IFMT(mode)
     if kind != stat.S_IFREG:
-        raise InputError(path, _KINDS.get(kind, "is not a regular file"))
+        raise OutputError(path, _KINDS.get(kind, "is not a regular file"))
 
 
 def make_folder(folder: Path) -> None:
-    """Create ``folder`` and its parents (existing is fine); one-line :class:`InputError`
+    """Create ``folder`` and its parents (existing is fine); one-line :class:`OutputError`
     naming it and the reason when that is impossible (a file in the way, read-only, ...)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
-        raise InputError(folder, "cannot create folder: not a directory") from None
+        raise OutputError(folder, "cannot create folder: not a directory") from None
     except OSError as exc:
-        raise InputError(folder, f"cannot create folder: {os_reason(exc)}") from None
+        raise OutputError(folder, f"cannot create folder: {os_reason(exc)}") from None
 
 
 def discard(path: Path) -> None:
@@ -81,16 +83,56 @@ def discard(path: Path) -> None:
         pass
 
 
-def _write_new_file(tmp: Path, data: bytes | Callable[[BinaryIO], object]) -> None:
-    """Create ``tmp`` with ``data``, or with what ``data(file)`` writes to it, and flush it."""
+#: Names :func:`temporary_sibling` makes (with an optional kept suffix).
+TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
+
+
+def _write_and_replace(
+    tmp: Path, data: bytes | Callable[[BinaryIO], object], target: Path
+) -> None:
+    """Write ``tmp`` (``data``, or what ``data(file)`` writes) and rename it onto ``target``,
+    holding an ``flock`` on it throughout, so :func:`remove_dead_temporaries` never takes a
+    live writer's file for a dead one's."""
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
     with os.fdopen(fd, "wb") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         if isinstance(data, bytes):
             fh.write(data)
         else:
             data(fh)
         fh.flush()
         os.fsync(fh.fileno())
+        os.replace(tmp, target)
+
+
+def remove_dead_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files in ``folder`` whose writer has died (``kill -9``); returns them.
+
+    For shared folders written without a folder lock (the caches): a temporary file is a
+    dead writer's when its ``flock`` can be taken (the kernel drops a writer's lock when it
+    dies). Never raises. A writer that opened its file but has not locked it yet may lose it;
+    its rename then fails, which a cache reports as an entry not written.
+    """
+    removed: list[Path] = []
+    try:
+        names = [n for n in os.listdir(folder) if TEMPORARY_NAME.match(n)]
+    except OSError:
+        return removed
+    for name in names:
+        path = folder / name
+        try:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | os.O_NONBLOCK)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            path.unlink()
+            removed.append(path)
+        except OSError:
+            pass  # a live writer holds it, or it is already gone
+        finally:
+            os.close(fd)
+    return removed
 
 
 def _sync_folder(folder: Path) -> None:
@@ -134,7 +176,7 @@ def atomic_write_bytes(
 
     Raises
     ------
-    InputError
+    OutputError
         ``path`` is a folder, a symbolic link or a device, or the folder cannot be created or the
         file cannot be written (one line naming the path and the system's reason).
     """
@@ -143,11 +185,10 @@ def atomic_write_bytes(
     make_folder(target.parent)
     tmp = temporary_sibling(target)
     try:
-        _write_new_file(tmp, data)
-        os.replace(tmp, target)
+        _write_and_replace(tmp, data, target)
     except OSError as exc:
         discard(tmp)
-        raise InputError(target, f"cannot write: {os_reason(exc)}") from None
+        raise OutputError(target, f"cannot write: {os_reason(exc)}") from None
     _sync_folder(target.parent)
     return target
 
@@ -165,7 +206,7 @@ class AtomicTextFile:
     errors : str
         The encoder's error handler (``"surrogateescape"`` keeps undecodable file names).
 
-    Every :class:`OSError` becomes a one-line :class:`InputError` naming ``path``.
+    Every :class:`OSError` becomes a one-line :class:`OutputError` naming ``path``.
     """
 
     def __init__(
@@ -183,7 +224,7 @@ class AtomicTextFile:
         try:
             fd = os.open(self.partial, flags, 0o644)
         except OSError as exc:
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
         self._fh: TextIO | None = os.fdopen(fd, "w", encoding="utf-8", newline="", errors=errors)
 
     def write(self, text: str) -> int:
@@ -192,14 +233,14 @@ class AtomicTextFile:
         try:
             return self._fh.write(text)
         except OSError as exc:
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
 
     def flush(self) -> None:
         if self._fh is not None:
             try:
                 self._fh.flush()
             except OSError as exc:
-                raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+                raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
 
     def commit(self) -> Path:
         """Flush to disk and rename onto ``path``; returns ``path``."""
@@ -216,7 +257,7 @@ class AtomicTextFile:
             self.abort()
             if isinstance(exc, InputError):
                 raise
-            raise InputError(self.path, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(self.path, f"cannot write: {os_reason(exc)}") from None
         _sync_folder(self.path.parent)
         return self.path
 

@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from qdcnn.errors import QdcnnError
+from qdcnn.errors import OutputError, QdcnnError
 
 _T = TypeVar("_T")
 _R = TypeVar("_R")
@@ -44,11 +44,15 @@ def run_batch(
 
     Only the errors qdcnn raises on purpose (bad files, bad rows, bad values)
     and operating-system errors are caught, so a programming error still stops
-    the run loudly instead of being reported as a bad file.
+    the run loudly instead of being reported as a bad file. An :class:`OutputError`
+    (a read-only or full disk, a link in the way) is no item's fault and would fail every
+    later item the same way: it ends the batch.
     """
     for item in items:
         try:
             yield Outcome(item, result=work(item))
+        except OutputError:
+            raise
         except QdcnnError as exc:
             yield Outcome(item, failure=Failure(name(item), _one_line(exc, name(item))))
         except OSError as exc:

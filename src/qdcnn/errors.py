@@ -31,6 +31,13 @@ class InputError(QdcnnError, ValueError):
         super().__init__(f"{self.source}: {self.reason}")
 
 
+class OutputError(InputError):
+    """An output cannot be written: a read-only or full file system, a file, link or device in
+    the way, no permission. Unlike a bad input it ends the whole run (every later output
+    would fail the same way), as one line naming the output and the system's reason.
+    """
+
+
 class ParameterError(QdcnnError, ValueError):
     """A parameter value is out of its meaningful range.
 

@@ -34,7 +34,6 @@ import fcntl
 import hashlib
 import json
 import os
-import re
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -43,18 +42,16 @@ from typing import Any, Literal
 
 from qdcnn import __version__
 from qdcnn._closing import ClosesOnExit
-from qdcnn._fileio import os_reason, temporary_sibling
-from qdcnn.errors import InputError, ParameterError
+from qdcnn._fileio import TEMPORARY_NAME, os_reason, temporary_sibling
+from qdcnn.errors import InputError, OutputError, ParameterError
 
 LOCK_NAME = ".qdcnn.lock"
 _MANIFEST_DIR = ".qdcnn-manifest"
-#: Names :func:`qdcnn._fileio.temporary_sibling` makes (with an optional kept suffix).
-_TEMP_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_NOFOLLOW", 0)
 Status = Literal["complete", "missing", "stale"]
 
 
-class OutputLockedError(InputError):
+class OutputLockedError(OutputError):
     """Another process holds the output folder's lock."""
 
 
@@ -184,7 +181,7 @@ class OutputFolder(ClosesOnExit):
     ------
     OutputLockedError
         Another process is writing to the folder.
-    InputError
+    OutputError
         The folder cannot be created or written.
     """
 
@@ -203,7 +200,7 @@ class OutputFolder(ClosesOnExit):
             self.root.mkdir(parents=True, exist_ok=True)
             self._dir_fd = os.open(self.root, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         except OSError as exc:
-            raise InputError(
+            raise OutputError(
                 self.root, f"cannot create or open the output folder: {os_reason(exc)}"
             ) from None
         try:
@@ -215,7 +212,7 @@ class OutputFolder(ClosesOnExit):
             )
         except OSError as exc:
             self.close()
-            raise InputError(
+            raise OutputError(
                 self.root, f"output folder is not writable: {os_reason(exc)}"
             ) from None
         self._acquire()
@@ -237,7 +234,7 @@ class OutputFolder(ClosesOnExit):
             except OSError as exc:
                 if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
                     self.close()
-                    raise InputError(self.root, f"cannot lock: {os_reason(exc)}") from None
+                    raise OutputError(self.root, f"cannot lock: {os_reason(exc)}") from None
             if time.monotonic() >= deadline:
                 self.close()
                 waited = f" (waited {self.wait:g} s)" if self.wait else ""
@@ -283,10 +280,10 @@ class OutputFolder(ClosesOnExit):
                 except OSError as exc:
                     shown = self.root.joinpath(*parts[: i + 1])
                     if exc.errno in (errno.ELOOP, errno.ENOTDIR) and os.path.islink(shown):
-                        raise InputError(
+                        raise OutputError(
                             shown, "is a symbolic link; qdcnn never writes through one"
                         ) from None
-                    raise InputError(shown, f"cannot open folder: {os_reason(exc)}") from None
+                    raise OutputError(shown, f"cannot open folder: {os_reason(exc)}") from None
                 os.close(fd)
                 fd = child
         except BaseException:
@@ -325,7 +322,7 @@ class OutputFolder(ClosesOnExit):
                 os.unlink(tmp, dir_fd=fd)
             except OSError:
                 pass
-            raise InputError(target, f"cannot write: {os_reason(exc)}") from None
+            raise OutputError(target, f"cannot write: {os_reason(exc)}") from None
         finally:
             os.close(fd)
         return OutputRecord.of(data)
@@ -350,7 +347,7 @@ class OutputFolder(ClosesOnExit):
             write(base / tmp)
             st = os.stat(tmp, dir_fd=fd, follow_symlinks=False)
             if (st.st_mode & 0o170000) != 0o100000:
-                raise InputError(target, "the writer did not produce a regular file")
+                raise OutputError(target, "the writer did not produce a regular file")
             h = hashlib.sha256()
             f = os.open(tmp, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0), dir_fd=fd)
             try:
@@ -368,7 +365,7 @@ class OutputFolder(ClosesOnExit):
             except OSError:
                 pass
             if isinstance(exc, OSError):
-                raise InputError(target, f"cannot write: {os_reason(exc)}") from None
+                raise OutputError(target, f"cannot write: {os_reason(exc)}") from None
             raise
         finally:
             os.close(fd)
@@ -439,7 +436,7 @@ class OutputFolder(ClosesOnExit):
             pass
         except OSError as exc:
             reason = f"cannot remove: {os_reason(exc)}"
-            raise InputError(self.root.joinpath(*parts), reason) from None
+            raise OutputError(self.root.joinpath(*parts), reason) from None
         finally:
             os.close(fd)
 
@@ -450,7 +447,7 @@ class OutputFolder(ClosesOnExit):
         for folder, dirs, files in os.walk(self.root, followlinks=False):
             dirs[:] = [d for d in dirs if not os.path.islink(os.path.join(folder, d))]
             for name in files:
-                if _TEMP_NAME.match(name):
+                if TEMPORARY_NAME.match(name):
                     path = Path(folder) / name
                     try:
                         path.unlink()

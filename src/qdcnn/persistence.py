@@ -134,11 +134,48 @@ def load_model(
             metadata = fh.metadata() or {}
             arrays = {name: fh.get_tensor(name) for name in fh.keys()}
     except (SafetensorError, OSError, ValueError, TypeError) as exc:
-        raise InputError(p, f"not a readable qdcnn model file ({_first_line(exc)})") from None
+        culprit = _tensor_at_fault(p)
+        named = f"tensor {culprit!r} does not match its bytes: " if culprit else ""
+        reason = named + _first_line(exc)
+        raise InputError(p, f"not a readable qdcnn model file ({reason})") from None
     if _METADATA_KEY not in metadata:
         raise InputError(p, "a safetensors file without a qdcnn header (not a qdcnn model)")
     header = _parse_header(p, metadata[_METADATA_KEY], kind, versions)
     return header, arrays
+
+
+_DTYPE_BYTES = {"BOOL": 1, "U8": 1, "I8": 1, "I16": 2, "U16": 2, "F16": 2, "BF16": 2}
+_DTYPE_BYTES |= {"I32": 4, "U32": 4, "F32": 4, "I64": 8, "U64": 8, "F64": 8}
+
+
+def _tensor_at_fault(path: Path) -> str | None:
+    """The first tensor whose shape, type or offsets do not match the bytes of the safetensors
+    file ``path`` (for the error line; safetensors' own message does not name it)."""
+    try:
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            n = int.from_bytes(fh.read(8), "little")
+            if n > min(size - 8, MAX_JSON_BYTES):
+                return None
+            table = json.loads(fh.read(n))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(table, dict):
+        return None
+    for name, spec in table.items():
+        if name != "__metadata__" and not _tensor_fits(spec, size - 8 - n):
+            return str(name)
+    return None
+
+
+def _tensor_fits(spec: Any, data_bytes: int) -> bool:
+    try:
+        start, end = (int(v) for v in spec["data_offsets"])
+        count = math.prod(int(d) for d in spec["shape"])
+        item = _DTYPE_BYTES[spec["dtype"]]
+    except (KeyError, TypeError, ValueError):
+        return False
+    return 0 <= start <= end <= data_bytes and end - start == count * item
 
 
 def save_json_model(

@@ -11,14 +11,13 @@ renamed over it would replace the machine's device). ``circuit --qasm`` and
 from __future__ import annotations
 
 import os
-import shutil
 import stat
-import subprocess
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 from tests.cli.test_cli_commands import app, runner
+from tests.faults.fault_support import make_null_device, mounted_tmpfs
 
 from qdcnn.data.images import write_image, write_mask
 from qdcnn.experiments.noise import synthetic_shadow_set
@@ -55,32 +54,14 @@ COMMANDS: dict[str, tuple[Args, bool]] = {
 @pytest.fixture
 def read_only_dir(tmp_path: Path) -> Iterator[Path]:
     """An empty folder on a read-only ``tmpfs`` (skips when mounting is not permitted)."""
-    mount_point = tmp_path / "ro"
-    mount_point.mkdir()
-    if shutil.which("mount") is None:
-        pytest.skip("no mount command")
-    done = subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", "ro", "tmpfs", str(mount_point)],
-        capture_output=True,
-        check=False,
-    )
-    if done.returncode != 0:
-        pytest.skip(f"cannot mount a read-only tmpfs: {done.stderr.decode().strip()}")
-    try:
+    with mounted_tmpfs(tmp_path / "ro", "ro") as mount_point:
         yield mount_point
-    finally:
-        subprocess.run(["umount", str(mount_point)], check=False)
 
 
 @pytest.fixture
 def null_device(tmp_path: Path) -> Path:
     """A character device like ``/dev/null`` in the test's folder (skips without mknod)."""
-    node = tmp_path / "null"
-    try:
-        os.mknod(node, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
-    except (OSError, AttributeError) as exc:
-        pytest.skip(f"cannot make a device node: {exc}")
-    return node
+    return make_null_device(tmp_path / "null")
 
 
 def _assert_one_error(args: list[str], *names: str) -> str:

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn._fileio import atomic_write_bytes
+from qdcnn._fileio import atomic_write_bytes, remove_dead_temporaries
 from qdcnn.batch import Failure
 from qdcnn.errors import InputError
 
@@ -86,6 +86,7 @@ def write_entry(
         arrays[f"status/{g}"] = np.asarray(entry.status[g], dtype=str)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)  # type: ignore[arg-type]
+    remove_dead_temporaries(path.parent)  # of runs killed while writing an entry
     try:
         atomic_write_bytes(path, buffer.getvalue())
     except InputError as exc:

@@ -169,7 +169,8 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
 
 class _PredictionTable:
     """``predictions.csv`` written row by row into ``predictions.partial.csv`` (flushed
-    per row, never through a link), which becomes ``predictions.csv`` when the run ends."""
+    per row, never through a link), which becomes ``predictions.csv`` when the run ends;
+    a run that ends on an error (a full disk) removes it."""
 
     def __init__(self, out: Path) -> None:
         self.partial = out / "predictions.partial.csv"
@@ -188,8 +189,10 @@ class _PredictionTable:
     def __exit__(self, exc_type: type[BaseException] | None, *_: object) -> None:
         if exc_type is None:
             self.file.commit()
+        elif issubclass(exc_type, Exception):
+            self.file.abort()  # the run ended on an error: its rows are in the manifest
         else:
-            self.file.close()
+            self.file.close()  # interrupted (Ctrl-C): the rows so far stay readable
 
 
 def _csv_row(record: LaneRecord) -> list[str]:

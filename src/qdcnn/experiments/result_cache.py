@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn import __version__
-from qdcnn._fileio import atomic_write_text
+from qdcnn._fileio import atomic_write_text, remove_dead_temporaries
 from qdcnn.direction.features import cache_dir, code_fingerprint
 from qdcnn.direction.protocol import FoldStore
 from qdcnn.errors import InputError
@@ -73,6 +73,7 @@ class UnitStore(FoldStore):
             "chosen": chosen,
             "epochs_run": int(epochs),
         }
+        remove_dead_temporaries(self.path(fold).parent)  # of runs killed while writing
         try:
             atomic_write_text(self.path(fold), json.dumps(entry, default=_plain))
         except InputError:

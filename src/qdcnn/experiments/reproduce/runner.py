@@ -41,6 +41,7 @@ from qdcnn.experiments.reproduce.shadows import shadow_section
 from qdcnn.experiments.reproduce.spec import ReproduceSpec
 from qdcnn.experiments.reproduce.timing import timing_section
 from qdcnn.experiments.reproduce.training import cnn_section, vqc_section
+from qdcnn.outputs import LOCK_NAME, OutputFolder
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = ["PAGE_ORDER", "SECTIONS", "ReproduceResult", "run_reproduce"]
@@ -151,7 +152,7 @@ def prepare_output(spec: ReproduceSpec) -> dict[str, Section]:
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
     kept: dict[str, Section] = {}
-    if out.is_dir() and any(out.iterdir()):
+    if out.is_dir() and any(p.name != LOCK_NAME for p in out.iterdir()):
         if spec.resume:
             kept = _finished_sections(spec)
         elif spec.force:
@@ -170,11 +171,14 @@ def prepare_output(spec: ReproduceSpec) -> dict[str, Section]:
 
 
 def _remove_report_files(out: Path) -> None:
+    """Remove the report of an earlier run; a link in the way is removed, never followed."""
     try:
         for name in ("index.html", "report.json"):
             (out / name).unlink(missing_ok=True)
         for folder in ("figures", "sections"):
-            if (out / folder).is_dir():
+            if (out / folder).is_symlink():
+                (out / folder).unlink()
+            elif (out / folder).is_dir():
                 shutil.rmtree(out / folder)
     except OSError as exc:
         raise InputError(out, f"cannot remove the old report: {os_reason(exc)}") from None
@@ -217,11 +221,18 @@ def run_reproduce(spec: ReproduceSpec, reporter: Reporter | None = None) -> Repr
     Raises
     ------
     InputError, ParameterError
-        The output folder cannot be used (exists without ``force`` or ``resume``, or holds
-        a run of other settings). Everything that goes wrong later is reported inside the
-        report and in :attr:`ReproduceResult.failures`.
+        The output folder cannot be used (exists without ``force`` or ``resume``, holds
+        a run of other settings, or another run is writing to it). Everything that goes
+        wrong later is reported inside the report and in :attr:`ReproduceResult.failures`.
     """
-    report = reporter or Reporter()
+    if spec.out.exists() and not spec.out.is_dir():
+        raise InputError(spec.out, "exists and is not a folder")
+    with OutputFolder(spec.out):  # one run at a time; a killed run's temporaries go
+        return _run_sections(spec, reporter or Reporter())
+
+
+def _run_sections(spec: ReproduceSpec, report: Reporter) -> ReproduceResult:
+    """:func:`run_reproduce` in its locked output folder."""
     t0 = time.perf_counter()
     kept = prepare_output(spec)
     ctx = RunContext.create(spec, report)
