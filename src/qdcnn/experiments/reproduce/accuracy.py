@@ -369,7 +369,7 @@ def majority_text(r: dict[str, Any]) -> str:
     """The majority row's cell: its balanced accuracy and accuracy over the pooled test frames."""
     from qdcnn.direction.scores import format_metric
 
-    first = next(iter(r["results"]["paper"].values()), {})
+    first: dict[str, Any] = next(iter(r["results"]["paper"].values()), {})
     ba = format_metric(first.get("majority", {}), "balanced_accuracy")
     return f"{ba}; acc {r['majority_baseline']:.2f}"
 
