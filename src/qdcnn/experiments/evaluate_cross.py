@@ -38,6 +38,7 @@ from qdcnn.experiments.evaluate import (
     EvaluationSpec,
     add_failures,
     array_digest,
+    check_inner_searches,
     label_summary,
     method_seeds,
     options_key,
@@ -93,6 +94,10 @@ def run_cross_evaluation(
     for train, test in splits:
         for t in test:
             check_no_overlap(frames, train, t)
+    shortest = min(sum(len(frames[s]) for s in train) for train, _ in splits)
+    loo = "the smallest training set of --protocol leave-one-out"
+    where = loo if spec.leave_one_out else "--train"
+    check_inner_searches(spec, methods, shortest, where)
     tests = list(dict.fromkeys(t for _, test in splits for t in test))
     result = EvaluationResult(
         " | ".join(frames[t].name for t in tests),
