@@ -431,10 +431,6 @@ def _run_k_fold(
             "training recordings (--train/--test or --protocol leave-one-out)",
         )
     ContiguousKFold(spec.folds, spec.gap).check(len(frames))
-    splits = ContiguousKFold(spec.folds, spec.gap).split(np.zeros(len(frames)))
-    shortest = min(len(train) for train, _ in splits)
-    where = f"the shortest training set of --folds {spec.folds}"
-    check_inner_searches(spec, methods, shortest, where)
     result = EvaluationResult(
         frames.name,
         len(frames),
@@ -448,6 +444,12 @@ def _run_k_fold(
     )
     add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
     result.labels = label_summary(frames, spec.config, report)
+    # before any work: one class left (always fatal later), then an inner search that cannot run
+    check_labels_usable(frames.labels(spec.config.labels), source=frames.spec)
+    splits = ContiguousKFold(spec.folds, spec.gap).split(np.zeros(len(frames)))
+    shortest = min(len(train) for train, _ in splits)
+    where = f"the shortest training set of --folds {spec.folds}"
+    check_inner_searches(spec, methods, shortest, where)
     with executor_for(spec.scheduler) as executor:
         _evaluate_all(spec, frames, methods, result, report, executor)
     return result
