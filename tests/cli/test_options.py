@@ -289,12 +289,12 @@ def test_train_direction_refuses_an_inner_search_that_cannot_run(
     ("data", "names"),
     [
         (
-            ["--data", "synthetic:track1:60", "--folds", "2"],
-            ("--inner-folds 50", "--gap 5", "25 training frames", "--folds 2"),
+            ["--data", "synthetic:track1:120", "--folds", "2"],
+            ("--inner-folds 50", "--gap 5", "55 training frames", "--folds 2"),
         ),
         (
-            ["--train", "synthetic:track2:30", "--test", "synthetic:track1:30"],
-            ("--inner-folds 50", "--gap 5", "30 training frames (--train)"),
+            ["--train", "synthetic:track2:120", "--test", "synthetic:track1:30"],
+            ("--inner-folds 50", "--gap 5", "120 training frames (--train)"),
         ),
     ],
 )
