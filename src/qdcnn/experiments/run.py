@@ -21,6 +21,7 @@ from qdcnn.data.frames import load_frameset, parse_data_spec
 from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.errors import ParameterError
+from qdcnn.outputs import refuse_output_in_inputs
 from qdcnn.runtime.engine import (
     InputResult,
     Progress,
@@ -91,6 +92,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
     resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
+    refuse_output_in_inputs(spec.out, [_folder_of(item) for item in spec.inputs])
     model = direction_model(
         spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
     )
@@ -129,6 +131,14 @@ def _input(item: str, spec: RunSpec) -> Any:
         parse_data_spec(item)
         return load_frameset(item, seed=spec.seed)
     return item
+
+
+def _folder_of(item: str) -> Path:
+    """The folder an input reads: a recording spec's folder, or the path itself."""
+    if item.startswith(("udacity:", "carla:")):
+        path = Path(parse_data_spec(item).value)
+        return path if path.is_dir() else path.parent
+    return Path(item)
 
 
 def _advance(progress: Progress, bars: dict[str, Any], stack: ExitStack, report: Reporter) -> None:

@@ -46,7 +46,7 @@ from typing import Any
 from qdcnn import __version__
 from qdcnn.data.video import MAX_VIDEO_PIXELS, check_decoder, check_encoder, default_encoder
 from qdcnn.errors import ParameterError, QdcnnError
-from qdcnn.outputs import OutputFolder, config_hash
+from qdcnn.outputs import OutputFolder, config_hash, refuse_output_in_inputs
 from qdcnn.runtime.assembly import (
     ChunkVanishedError,
     assemble,
@@ -56,6 +56,7 @@ from qdcnn.runtime.assembly import (
 )
 from qdcnn.runtime.chunks import ChunkResult, ChunkTask, FrameProcessor, csv_header, run_chunk
 from qdcnn.runtime.inputs import (
+    FolderInput,
     Input,
     Probe,
     VideoInput,
@@ -296,6 +297,7 @@ def run_inputs(
     if not isinstance(processor, FrameProcessor):
         raise ParameterError("processor", type(processor).__name__, "a FrameProcessor")
     resolved, sources = resolve_inputs(inputs)
+    refuse_output_in_inputs(out_dir, [i.path for i in resolved if isinstance(i, FolderInput)])
     own_executor = executor is None
     ex = executor or Executor()
     t0 = time.perf_counter()
