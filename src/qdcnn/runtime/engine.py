@@ -23,7 +23,12 @@ empty for image folders), ``direction`` (the decision; with ``smooth=K`` the maj
 over the frame and the K - 1 frames before it), ``direction_raw`` (the frame's own decision
 before the vote; always present, equal to ``direction`` without smoothing),
 ``p_<class>`` per class when the processor gives probabilities, ``shadow_fraction``,
-``lane_status`` (or ``error`` for a frame that could not be decoded or processed).
+``lane_status`` (or ``error`` for a frame that could not be decoded or processed),
+``status`` (``ok``; ``bad-row``: a row of a recording's label file that was skipped, kept
+as a frame so the frame numbers stay the recording's rows; ``unreadable``: a frame or
+image file that could not be read or decoded; ``failed``: processing failed) and ``note``
+(why, naming the file or row; empty for ``ok``). Frame numbers are never renumbered: a
+video's frame index, a file's place in the sorted image folder, a recording's data row.
 ``timings.csv``: ``frame``, ``process_ms`` (for a processor that works in batches, the
 frame's share of its batch of :data:`BATCH_FRAMES`) and ``overlay_ms`` (drawing and
 encoding), **measured**, different on every run.
