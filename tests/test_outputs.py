@@ -213,3 +213,10 @@ def test_an_output_folder_in_an_input_folder_is_refused(tmp_path: Path) -> None:
         refuse_output_in_inputs(link, [frames])
     refuse_output_in_inputs(tmp_path / "out", [frames, video])  # beside: fine
     refuse_output_in_inputs(tmp_path, [video])  # a video's folder may hold the outputs
+
+
+def test_a_dangling_link_is_named_a_broken_symbolic_link(tmp_path: Path) -> None:
+    link = tmp_path / "frame.png"
+    link.symlink_to(tmp_path / "gone.png")
+    with pytest.raises(InputError, match=r"frame\.png: file not found \(a broken symbolic link\)"):
+        file_identity(link)
