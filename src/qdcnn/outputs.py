@@ -149,10 +149,9 @@ def file_identity(path: str | os.PathLike[str], *, content_hash: bool = False) -
     p = Path(path)
     try:
         st = p.stat()
-    except FileNotFoundError:
-        broken = " (a broken symbolic link)" if p.is_symlink() else ""
-        raise InputError(p, f"file not found{broken}") from None
     except OSError as exc:
+        if isinstance(exc, FileNotFoundError) and p.is_symlink():
+            raise InputError(p, "cannot read: a broken symbolic link") from None
         raise InputError(p, f"cannot read: {os_reason(exc)}") from None
     out: dict[str, Any] = {"path": str(p.resolve()), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
     if content_hash:
