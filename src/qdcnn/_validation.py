@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -149,41 +148,25 @@ def has_shape(array: object, dims: str) -> bool:
     (True, True)
     """
     shape = tuple(int(n) for n in np.shape(array))  # type: ignore[call-overload]
-    return any(_matches(shape, head, tail) for head, tail in _parsed_dims(dims))
+    return any(_matches(shape, alternative) for alternative in dims.split("|"))
 
 
-_Sizes = tuple[int | None, ...]
+def _matches(shape: tuple[int, ...], dims: str) -> bool:
+    names = [d.strip() for d in dims.split(",") if d.strip()]
+    if "*" in names:
+        cut = names.index("*")
+        head, tail = names[:cut], names[cut + 1 :]
+        if len(shape) < len(head) + len(tail):
+            return False
+        return _sizes_match(shape[: len(head)], head) and _sizes_match(
+            shape[len(shape) - len(tail) :], tail
+        )
+    return len(shape) == len(names) and _sizes_match(shape, names)
 
 
-@lru_cache(maxsize=256)
-def _parsed_dims(dims: str) -> tuple[tuple[_Sizes, _Sizes | None], ...]:
-    """The alternatives of ``dims``, each as the sizes before one ``*`` (``None`` for a
-    named axis) and the sizes after it (``None`` when there is no ``*``): parsed once
-    per text, as a check runs on every frame."""
-    out = []
-    for alternative in dims.split("|"):
-        names = [d.strip() for d in alternative.split(",") if d.strip()]
-        sizes = [int(n) if n.isdigit() else None for n in names]
-        if "*" in names:
-            cut = names.index("*")
-            out.append((tuple(sizes[:cut]), tuple(sizes[cut + 1 :])))
-        else:
-            out.append((tuple(sizes), None))
-    return tuple(out)
-
-
-def _matches(shape: tuple[int, ...], head: _Sizes, tail: _Sizes | None) -> bool:
-    if tail is None:
-        return len(shape) == len(head) and _sizes_match(shape, head)
-    if len(shape) < len(head) + len(tail):
-        return False
-    return _sizes_match(shape[: len(head)], head) and _sizes_match(
-        shape[len(shape) - len(tail) :], tail
-    )
-
-
-def _sizes_match(shape: tuple[int, ...], sizes: _Sizes) -> bool:
-    return all(want is None or size == want for size, want in zip(shape, sizes, strict=True))
+def _sizes_match(shape: tuple[int, ...], names: list[str]) -> bool:
+    pairs = zip(shape, names, strict=True)
+    return all(not name.isdigit() or size == int(name) for size, name in pairs)
 
 
 def shape_text(dims: str) -> str:

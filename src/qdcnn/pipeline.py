@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -81,7 +80,7 @@ def process_frame(
     corrected = image
     if cfg.lanes.remove_shadows:
         mask = detect_shadows_uu(image, cfg.shadow, rng=rng).mask
-        corrected = remove_shadows(image, mask, road_region(image.shape, cfg.lanes.roi))
+        corrected = remove_shadows(image, mask, polygon_mask(image.shape, cfg.lanes.roi))
     segments = detect_segments(corrected, cfg.lanes)
     lanes = {
         g: group_segments(
@@ -97,20 +96,6 @@ def process_frame(
         for g in groupings
     }
     return FrameResult(mask, corrected, segments, lanes)
-
-
-@lru_cache(maxsize=16)
-def _road_region(shape: tuple[int, int], roi: tuple[tuple[float, float], ...]) -> NDArray[np.bool_]:
-    mask = polygon_mask(shape, roi)
-    mask.setflags(write=False)
-    return mask
-
-
-def road_region(shape: tuple[int, ...], roi: Sequence[tuple[float, float]]) -> NDArray[np.bool_]:
-    """The lane ROI's mask on a frame of ``shape`` (read-only; built once per shape and ROI,
-    not once per frame)."""
-    polygon = tuple((float(x), float(y)) for x, y in roi)
-    return _road_region((int(shape[0]), int(shape[1])), polygon)
 
 
 def auto_lanes(

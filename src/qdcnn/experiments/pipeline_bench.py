@@ -60,8 +60,7 @@ def bench_pipeline(
     say: Callable[[str], None] | None = None,
     lane_stage: bool = True,
 ) -> dict[str, Any]:
-    """Frames per second of the per-frame pipeline + classifier decision for each method
-    (measured; batches of frames as ``qdcnn run`` processes them, :func:`_time_method`).
+    """Frames per second of ``process_frame`` + classifier decision for each method (measured).
 
     With ``lane_stage`` the lane stage alone at 640x480 (:func:`bench_lane_stage`) is one
     more row of ``pipeline``.
@@ -111,14 +110,8 @@ def _time_method(
     seed: int,
     log: Callable[[str], None],
 ) -> dict[str, Any]:
-    """Train ``method`` on ``train``, then time its per-frame pipeline and decision on
-    ``images`` as ``qdcnn run`` does them: :meth:`LaneDirectionProcessor.process_batch` on
-    batches of :data:`~qdcnn.runtime.chunks.BATCH_FRAMES` frames (shadows and lanes per
-    frame, one classifier call per batch, each frame's result the one it gets alone).
-    After one warm-up batch; the median of three passes."""
-    from qdcnn.direction.processor import LaneDirectionProcessor
-    from qdcnn.runtime.chunks import BATCH_FRAMES
-
+    """Train ``method`` on ``train``, then time ``process_frame`` + its decision per frame
+    of ``images`` (after one warm-up frame; the median of three passes)."""
     grouping = get_method(method).grouping
     assert grouping is not None
     log(f"training {method}")
@@ -127,18 +120,19 @@ def _time_method(
     model = train_direction_model(
         method, table.features[grouping][keep], train.labels()[keep], cfg, data, inner_folds=0
     )
-    processor = LaneDirectionProcessor(model, seed=seed)
-    batches = [
-        (images[i : i + BATCH_FRAMES], list(range(i, min(i + BATCH_FRAMES, len(images)))))
-        for i in range(0, len(images), BATCH_FRAMES)
-    ]
+    rng = np.random.default_rng(seed)
     log(f"timing {method}")
-    processor.process_batch(*batches[0])
+
+    def run(image: np.ndarray) -> None:
+        lanes = process_frame(image, cfg, (grouping,), rng=rng).lanes[grouping]
+        model.predict(lanes.features)
+
+    run(images[0])
     passes = []
     for _ in range(3):
         t0 = time.perf_counter()
-        for batch, indices in batches:
-            processor.process_batch(batch, indices)
+        for image in images:
+            run(image)
         passes.append((time.perf_counter() - t0) / len(images))
     per_frame = float(np.median(passes))
     return {

@@ -100,22 +100,20 @@ def remove_shadows(
             )
 
     out = img.copy()
-    # only the region's rows can change: the masks and counts work on that band alone
-    # (a band of whole rows is contiguous, so OpenCV writes through to ``out``)
-    _, y, _, h = cv2.boundingRect(region.view(np.uint8))
-    band = slice(y, y + h)
-    target = shadow[band] & region[band]
-    lit = region[band] & ~shadow[band]
+    target = shadow & region
+    lit = region & ~shadow
     if not target.any() or not lit.any():
         return out
-    pixels = img[band].reshape(h, img.shape[1], -1)
-    view = out[band].reshape(pixels.shape)  # writes through to ``out``
+    pixels = img.reshape(*img.shape[:2], -1)
+    view = out.reshape(pixels.shape)  # writes through to ``out``
     lit_median = masked_channel_medians(pixels, lit)
     if method == "road-fill":
-        # A masked copy from a flat image is ~20x faster than boolean-index assignment
+        # A masked copy from a flat image, filled one row at a time, is ~20x faster than
+        # boolean-index assignment or broadcasting a 3-vector over the whole image.
         value = np.rint(lit_median).astype(np.uint8)
-        fill = np.tile(value, (h, img.shape[1])).reshape(view.shape)
-        cv2.copyTo(fill, target.view(np.uint8), view)
+        fill = np.empty_like(img)
+        fill[:] = np.tile(value, img.shape[1]).reshape(img.shape[1:])
+        cv2.copyTo(fill, target.view(np.uint8), out)
     else:
         shadow_values = pixels[target]
         gain = lit_median / np.maximum(masked_channel_medians(pixels, target), 1.0)
