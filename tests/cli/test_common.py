@@ -92,8 +92,8 @@ def test_progress_lines_on_stderr_unless_quiet(quiet: bool, tmp_path: Path, monk
 
 def test_a_damaged_feature_cache_entry_is_one_note_line(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
-    args = ["evaluate", "--data", "synthetic:track1:40", "--folds", "2", "--inner-folds", "0"]
-    args += ["--method", "image-split-uu", "--label-threshold", "0.05", "--quiet"]
+    args = ["evaluate", "--data", "synthetic:track1:120", "--folds", "2", "--inner-folds", "0"]
+    args += ["--method", "image-split-uu", "--quiet"]
     runner.invoke(app, args)
     entries = list((tmp_path / "cache").glob("features-*.npz"))
     assert entries
