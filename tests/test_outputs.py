@@ -194,3 +194,29 @@ def test_identity_and_config_hash_are_stable(tmp_path: Path) -> None:
     assert config_hash({"a": 1}) != config_hash({"a": 2})
     with pytest.raises(InputError, match="cannot read"):
         file_identity(tmp_path / "missing")
+
+
+def test_an_output_folder_in_an_input_folder_is_refused(tmp_path: Path) -> None:
+    from qdcnn.outputs import refuse_output_in_inputs
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    video = tmp_path / "drive.mp4"
+    video.write_bytes(b"x")
+    with pytest.raises(InputError, match="is the input folder"):
+        refuse_output_in_inputs(frames, [video, frames])
+    with pytest.raises(InputError, match="lies inside the input folder"):
+        refuse_output_in_inputs(frames / "out" / "deeper", [frames])
+    link = tmp_path / "link"
+    link.symlink_to(frames)
+    with pytest.raises(InputError, match="is the input folder"):
+        refuse_output_in_inputs(link, [frames])
+    refuse_output_in_inputs(tmp_path / "out", [frames, video])  # beside: fine
+    refuse_output_in_inputs(tmp_path, [video])  # a video's folder may hold the outputs
+
+
+def test_a_dangling_link_is_named_a_broken_symbolic_link(tmp_path: Path) -> None:
+    link = tmp_path / "frame.png"
+    link.symlink_to(tmp_path / "gone.png")
+    with pytest.raises(InputError, match=r"frame\.png: cannot read: a broken symbolic link"):
+        file_identity(link)

@@ -6,7 +6,24 @@ from os import PathLike
 
 
 class QdcnnError(Exception):
-    """Base class of every error qdcnn raises on purpose."""
+    """Base class of every error qdcnn raises on purpose.
+
+    Errors pickle with their attributes (``source``, ``reason``, ``row`` ...), so they
+    travel to and from worker processes whatever their constructor takes.
+    """
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return (_rebuild, (type(self), self.args, dict(self.__dict__)))
+
+
+def _rebuild(
+    cls: type[QdcnnError], args: tuple[object, ...], state: dict[str, object]
+) -> QdcnnError:
+    """An error unpickled: its message and attributes, without calling its constructor."""
+    exc = cls.__new__(cls)
+    exc.args = args
+    exc.__dict__.update(state)
+    return exc
 
 
 class InputError(QdcnnError, ValueError):

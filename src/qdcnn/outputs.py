@@ -35,7 +35,7 @@ import hashlib
 import json
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -147,6 +147,8 @@ def file_identity(path: str | os.PathLike[str], *, content_hash: bool = False) -
     try:
         st = p.stat()
     except OSError as exc:
+        if isinstance(exc, FileNotFoundError) and p.is_symlink():
+            raise InputError(p, "cannot read: a broken symbolic link") from None
         raise InputError(p, f"cannot read: {os_reason(exc)}") from None
     out: dict[str, Any] = {"path": str(p.resolve()), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
     if content_hash:
@@ -164,6 +166,35 @@ def _split(relpath: str | os.PathLike[str]) -> list[str]:
     if os.path.isabs(rel) or not rel or any(p in ("", ".", "..") for p in parts):
         raise ParameterError("path", rel, "a relative path inside the output folder, without ..")
     return parts
+
+
+def refuse_output_in_inputs(
+    out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]]
+) -> None:
+    """Refuse an output folder that is one of the input folders or lies inside one.
+
+    A run's masks, overlays or rows written there would be read as inputs by the next run
+    over the same folders. Only inputs that are folders count (a video file's folder may
+    hold the outputs); links are resolved first.
+
+    Raises
+    ------
+    InputError
+        Naming the output folder and the input folder it is in.
+    """
+    target = Path(out).resolve()
+    for item in inputs:
+        folder = Path(item)
+        if not folder.is_dir():
+            continue
+        where = folder.resolve()
+        if target == where or target.is_relative_to(where):
+            what = "is the input folder" if target == where else "lies inside the input folder"
+            raise InputError(
+                out,
+                f"{what} {folder}: the outputs would be read as inputs on the next run "
+                "(choose an output folder outside the inputs)",
+            )
 
 
 class OutputFolder(ClosesOnExit):

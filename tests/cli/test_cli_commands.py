@@ -588,3 +588,27 @@ def test_train_direction_trains_on_several_recordings_together(
     assert res.exit_code == 0, res.stderr
     obj = json_lines(res.stdout)[0]
     assert obj["n"] == 180 and obj["data"] == "synthetic:track1:60 + synthetic:track2:120"
+
+
+@pytest.mark.parametrize("command", ["detect-shadows", "detect-lanes", "run"])
+@pytest.mark.parametrize("inside", [False, True])
+def test_an_output_folder_in_the_input_folder_is_refused(
+    command: str, inside: bool, tmp_path: Path
+) -> None:
+    frames = tmp_path / "frames"
+    write_image(frames / "a.png", np.zeros((16, 32, 3), np.uint8))
+    out = frames / "out" if inside else frames
+    res = runner.invoke(app, [command, str(frames), "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith("error: ") and len(res.stderr.splitlines()) == 1, res.stderr
+    assert "input folder" in res.stderr
+    assert sorted(p.name for p in frames.iterdir()) == ["a.png"]
+
+
+def test_run_refuses_an_output_folder_inside_a_recording(tmp_path: Path) -> None:
+    rec = tmp_path / "rec"
+    res = runner.invoke(app, ["synth", "--n", "10", "--layout", "udacity", "--out", str(rec)])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["run", f"udacity:{rec}", "--out", str(rec / "run")])
+    assert res.exit_code == 2 and "lies inside the input folder" in res.stderr, res.output
+    assert not (rec / "run").exists()

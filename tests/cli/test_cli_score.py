@@ -135,3 +135,24 @@ def test_without_model_the_built_in_model_decides_and_is_named() -> None:
     assert row["model"].startswith("built-in lane model (image-split-uu trained on synthetic:")
     assert summary["model"] == row["model"]
     assert "note: no --model: the built-in lane model" in res.stderr
+
+
+def test_each_row_or_frame_left_out_is_one_note_naming_it(model_file: Path, tmp_path: Path) -> None:
+    rec = tmp_path / "rec"
+    res = runner.invoke(app, ["synth", "--n", "30", "--layout", "udacity", "--out", str(rec)])
+    assert res.exit_code == 0, res.output
+    log = rec / "driving_log.csv"
+    lines = log.read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[3] = "abc"
+    lines[3] = ",".join(fields)
+    log.write_text("\n".join(lines) + "\n")
+    Path(lines[5].split(",")[0].strip()).write_bytes(b"")
+    args = ["score", "--data", f"udacity:{rec}", "--model", str(model_file), "--json"]
+    res = runner.invoke(app, [*args, "--resamples", "50"])
+    assert res.exit_code == 0, res.stderr
+    notes = [line for line in res.stderr.splitlines() if "not scored" in line]
+    assert len(notes) == 2 and all(n.startswith("note: ") for n in notes), res.stderr
+    assert "driving_log.csv:row 4: steering 'abc' is not a number" in notes[0]
+    assert "empty file (0 bytes)" in notes[1]
+    assert json_lines(res.stdout)[0]["skipped_frames"] == 2

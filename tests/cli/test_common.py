@@ -88,3 +88,28 @@ def test_progress_lines_on_stderr_unless_quiet(quiet: bool, tmp_path: Path, monk
         "a_mask.png",
         "b_mask.png",
     ]
+
+
+def test_a_damaged_feature_cache_entry_is_one_note_line(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path / "cache"))
+    args = ["evaluate", "--data", "synthetic:track1:120", "--folds", "2", "--inner-folds", "0"]
+    args += ["--method", "image-split-uu", "--quiet"]
+    runner.invoke(app, args)
+    entries = list((tmp_path / "cache").glob("features-*.npz"))
+    assert entries
+    for entry in entries:
+        entry.write_bytes(b"junk")
+    res = runner.invoke(app, args)
+    notes = [line for line in res.stderr.splitlines() if "feature cache entry" in line]
+    assert len(notes) == len(entries) and all(n.startswith("note: ") for n in notes), res.stderr
+    assert "FeatureCacheWarning" not in res.stderr and ".py:" not in res.stderr
+
+
+def test_another_package_s_warning_is_one_note_line_with_its_category() -> None:
+    import warnings
+
+    from qdcnn.cli._common import warnings_as_notes
+
+    with err.capture() as capture, warnings_as_notes():
+        warnings.warn("it converged slowly", RuntimeWarning, stacklevel=1)
+    assert capture.get() == "note: RuntimeWarning: it converged slowly\n"

@@ -285,6 +285,29 @@ def test_train_direction_refuses_an_inner_search_that_cannot_run(
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("data", "names"),
+    [
+        (
+            ["--data", "synthetic:track1:120", "--folds", "2"],
+            ("--inner-folds 50", "--gap 5", "55 training frames", "--folds 2"),
+        ),
+        (
+            ["--train", "synthetic:track2:120", "--test", "synthetic:track1:30"],
+            ("--inner-folds 50", "--gap 5", "120 training frames (--train)"),
+        ),
+    ],
+)
+def test_evaluate_refuses_an_inner_search_that_cannot_run(
+    data: list[str], names: tuple[str, ...]
+) -> None:
+    args = ["evaluate", *data, "--method", "image-split-uu", "--inner-folds", "50"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.stderr
+    assert res.stderr.startswith("error: ") and len(res.stderr.splitlines()) == 1, res.stderr
+    assert all(name in res.stderr for name in names), res.stderr
+
+
 def test_equal_segment_angles_are_refused_in_the_user_s_words(tmp_path: Any) -> None:
     out = tmp_path / "m.safetensors"
     args = ["train-direction", "--data", "synthetic:track2:60", "--out", str(out)]

@@ -115,3 +115,41 @@ def test_failed_inputs_get_an_error_line_and_the_others_finish(drive: Path, tmp_
     errors = [line for line in res.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and "broken.mp4: not a readable video" in errors[0]
     assert (out / "track2" / "frames.csv").read_bytes().count(b"\n") == 25
+
+
+def test_bad_rows_and_files_of_a_recording_are_frames_with_one_error_line_each(
+    tmp_path: Path,
+) -> None:
+    rec = tmp_path / "rec"
+    res = runner.invoke(app, ["synth", "--n", "8", "--layout", "udacity", "--out", str(rec)])
+    assert res.exit_code == 0, res.output
+    log = rec / "driving_log.csv"
+    lines = log.read_text().splitlines()
+    for k, steering in ((2, "abc"), (4, "")):
+        fields = lines[k].split(",")
+        fields[3] = steering
+        lines[k] = ",".join(fields)
+    log.write_text("\n".join(lines) + "\n")
+    empty = lines[6].split(",")[0].strip()
+    Path(empty).write_bytes(b"")
+    out = tmp_path / "run"
+    args = ["run", f"udacity:{rec}", "--out", str(out), "--no-video", "--quiet"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 1, res.output
+    frames = (out / "rec" / "frames.csv").read_bytes()
+    rows = frames.decode().splitlines()[1:]
+    assert [int(r.split(",")[0]) for r in rows] == list(range(8))  # the recording's rows
+    status = [r.split(",")[-2] for r in rows]
+    assert status == ["ok", "ok", "bad-row", "ok", "bad-row", "ok", "unreadable", "ok"]
+    errors = res.stderr.splitlines()
+    assert len(errors) == 3 and all(e.startswith("error: ") for e in errors), res.stderr
+    assert "frame 2: " in errors[0] and "driving_log.csv:row 3: steering 'abc'" in errors[0]
+    assert "frame 4: " in errors[1] and "driving_log.csv:row 5: steering ''" in errors[1]
+    assert "frame 6: " in errors[2] and "empty file (0 bytes)" in errors[2]
+    again = runner.invoke(app, args)  # resumed: the same rows, lines and exit status
+    assert again.exit_code == 1 and again.stderr == res.stderr
+    assert (out / "rec" / "frames.csv").read_bytes() == frames
+    fresh = runner.invoke(app, [*args[:3], str(tmp_path / "fresh"), *args[4:]])
+    assert (
+        fresh.exit_code == 1 and (tmp_path / "fresh" / "rec" / "frames.csv").read_bytes() == frames
+    )

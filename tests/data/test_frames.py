@@ -108,3 +108,32 @@ def test_a_code_change_is_a_cache_miss(tmp_path: Path, monkeypatch: pytest.Monke
     assert compute_features(fs, default_config(), ("image-split",)).cached
     monkeypatch.setattr(features_module, "code_fingerprint", lambda: "other code")
     assert not compute_features(fs, default_config(), ("image-split",)).cached
+
+
+def test_a_recording_in_row_order_keeps_its_skipped_rows_as_frames(tmp_path: Path) -> None:
+    from qdcnn.data.frames import RecordingFrames
+    from qdcnn.data.recording import RowError
+
+    names = [f"center_2024_01_01_12_00_00_{ms:03d}.jpg" for ms in range(0, 500, 100)]
+    for i, name in enumerate(names):
+        write_image(tmp_path / "IMG" / name, np.full((8, 8, 3), 50 * i, np.uint8))
+    steering = ["0.1", "abc", "0.2", "", "-0.1"]
+    lines = [f"IMG/{n}, , , {s}, 0, 0, 1" for n, s in zip(names, steering, strict=True)]
+    (tmp_path / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    frames = load_frameset(f"udacity:{tmp_path}")
+    assert len(frames) == 3
+    ordered = frames.in_recording_order()
+    assert isinstance(ordered, RecordingFrames) and len(ordered) == 5
+    assert ordered.image(4)[0, 0, 0] == 200  # the fifth row's image, not the third frame's
+    with pytest.raises(RowError, match=r"driving_log\.csv:row 2: steering 'abc' is not a number"):
+        ordered.image(1)
+    assert ordered.timestamps is not None
+    assert (
+        np.isnan(ordered.timestamps[[1, 3]]).all()
+        and np.isfinite(ordered.timestamps[[0, 2, 4]]).all()
+    )
+    before = ordered.fingerprint()
+    (tmp_path / "driving_log.csv").write_text("\n".join(lines).replace("abc", "xyz") + "\n")
+    assert load_frameset(f"udacity:{tmp_path}").in_recording_order().fingerprint() != before
+    clean = load_frameset("synthetic:track1:10")
+    assert clean.in_recording_order() is clean  # nothing skipped: the frames as they are

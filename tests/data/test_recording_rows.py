@@ -92,6 +92,22 @@ def test_problems_carry_row_numbers_in_file_order(tmp_path: Path) -> None:
     assert str(info.value) == str(rec.problems[0])  # strict raises the first row's problem
 
 
+def test_every_row_keeps_its_place_among_the_data_rows(tmp_path: Path) -> None:
+    from qdcnn.data.recording import RowError
+
+    names = [stamp_name(ms) for ms in range(0, 500, 100)]
+    rows = [(names[0], "0.1"), (names[1], "abc"), (names[2], ""), (names[3], "0.2")]
+    rows += [(names[0], "0.1"), (names[4], "-0.1")]
+    csv_file = udacity(tmp_path, rows, images=names)
+    csv_file.write_text("center,left,right,steering,throttle,brake,speed\n" + csv_file.read_text())
+    rec = load_udacity(tmp_path)
+    np.testing.assert_array_equal(rec.rows, [2, 5, 7])  # line numbers, after the header
+    np.testing.assert_array_equal(rec.positions, [0, 3, 5])  # places among the data rows
+    assert all(isinstance(p, RowError) for p in rec.problems)
+    assert [(p.row, p.position) for p in rec.problems] == [(3, 1), (4, 2), (6, 4)]  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(rec.subset([2, 0]).positions, [5, 0])
+
+
 def test_simulator_recording_is_norm_and_angles_are_recognised(tmp_path: Path) -> None:
     names = [stamp_name(ms) for ms in range(0, 500, 100)]
     udacity(tmp_path / "sim", [(n, "0.3") for n in names])

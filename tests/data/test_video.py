@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from fractions import Fraction
 from pathlib import Path
@@ -205,6 +206,14 @@ def test_files_without_frames_get_one_line_errors(tmp_path: Path) -> None:
         VideoReader(tmp_path / "missing.mp4")
     with pytest.raises(InputError, match="is a directory"):
         VideoReader(tmp_path)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes on this system")
+def test_a_fifo_named_like_a_video_is_not_a_regular_file(tmp_path: Path) -> None:
+    fifo = tmp_path / "x.mp4"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match=r"x\.mp4: not a regular file \(a FIFO; a video file"):
+        VideoReader(fifo)
 
 
 def _raw_clip(path: Path, w: int, h: int, n: int = 3) -> Path:

@@ -128,3 +128,17 @@ def test_the_video_processor_defaults_to_the_built_in_model(
     assert processor.model.method == DEFAULT_METHOD
     assert processor.model.trained_on == " + ".join(SMALL)
     assert default_model_path(DEFAULT_METHOD, 0, SMALL).is_file()
+
+
+def test_an_unwritable_cache_gives_a_note_and_the_trained_model(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from qdcnn.runtime.reporting import Collector
+
+    (tmp_path / "models").write_text("a file where the models folder would be")
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path))
+    collector = Collector()
+    model = default_direction_model(DEFAULT_METHOD, 0, data=SMALL[:1], reporter=collector)
+    assert model.summary["n"] == 100
+    notes = [n for n in collector.notes if "not kept in the cache" in n]
+    assert len(notes) == 1 and "QDCNN_CACHE" in notes[0], collector.notes

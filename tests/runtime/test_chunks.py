@@ -17,5 +17,5 @@ def test_majority_vote_prefers_the_most_recent_of_tied_decisions() -> None:
 def test_the_header_is_fixed_with_the_raw_decision_always() -> None:
     assert csv_header(HalvesProcessor()) == [
         "frame", "timestamp", "direction", "direction_raw", "p_left", "p_straight", "p_right",
-        "shadow_fraction", "lane_status",
+        "shadow_fraction", "lane_status", "status", "note",
     ]  # fmt: skip

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from video_fakes import BatchHalvesProcessor, HalvesProcessor, ListSource, write_clip
+from video_fakes import BatchHalvesProcessor, HalvesProcessor, ListSource, clip_frame, write_clip
 
 from qdcnn.data.images import write_image
 from qdcnn.data.video import VideoReader
@@ -58,7 +58,7 @@ def test_a_run_writes_rows_in_frame_order_an_overlay_and_a_summary(
     rows = _rows(reference)
     assert list(rows[0]) == [
         "frame", "timestamp", "direction", "direction_raw", "p_left", "p_straight", "p_right",
-        "shadow_fraction", "lane_status",
+        "shadow_fraction", "lane_status", "status", "note",
     ]  # fmt: skip
     assert [int(r["frame"]) for r in rows] == list(range(N))
     assert np.allclose([float(r["timestamp"]) for r in rows], np.arange(N) / 10.0)
@@ -279,6 +279,51 @@ def test_bad_inputs_are_reported_and_the_others_processed(clip: Path, tmp_path: 
         run_inputs([clip], 3, tmp_path / "o4")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="smooth=0 is invalid"):
         RunOptions(smooth=0)
+
+
+def test_bad_files_and_rows_are_frames_with_a_status_and_never_renumbered(tmp_path: Path) -> None:
+    from qdcnn.data.frames import load_frameset
+
+    folder = tmp_path / "frames"
+    for i in range(6):
+        write_image(folder / f"f{i:02d}.png", np.full((48, 64, 3), 40 * i, np.uint8))
+    (folder / "f01.png").unlink()
+    (folder / "f01.png").symlink_to(tmp_path / "gone.png")  # a dangling link
+    (folder / "f02.png").write_bytes(b"")
+    (folder / "f03.png").write_bytes(b"not a png")
+    rec = tmp_path / "rec"
+    for i in range(4):
+        write_image(rec / "IMG" / f"c{i}.png", clip_frame(i))
+    steering = ["0.1", "abc", "", "0.2"]
+    lines = [f"IMG/c{i}.png, , , {s}, 0, 0, 1" for i, s in enumerate(steering)]
+    (rec / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    recording = load_frameset(f"udacity:{rec}").in_recording_order()
+    processor = HalvesProcessor(fail_at=(5,))
+    out = tmp_path / "out"
+    result = run_inputs([folder, recording], processor, out, options=OPTIONS)
+    images = _rows((out / "frames" / FRAMES_CSV).read_bytes())
+    assert [int(r["frame"]) for r in images] == list(range(6))  # the folder's order, all kept
+    assert [r["status"] for r in images] == [
+        "ok",
+        "unreadable",
+        "unreadable",
+        "unreadable",
+        "ok",
+        "failed",
+    ]
+    assert "f01.png: file not found (a broken symbolic link)" in images[1]["note"]
+    assert "f02.png: empty file (0 bytes)" in images[2]["note"]
+    assert images[0]["note"] == "" and images[5]["note"] == "frame 5: cannot be processed"
+    rows = _rows((out / "rec" / FRAMES_CSV).read_bytes())
+    assert [r["status"] for r in rows] == ["ok", "bad-row", "bad-row", "ok"]
+    assert rows[1]["note"].endswith("driving_log.csv:row 2: steering 'abc' is not a number")
+    assert rows[1]["direction"] == "" and rows[3]["direction"] != ""
+    by_name = {r.name: r for r in result.inputs}
+    assert [i for i, _ in by_name["frames"].bad_frames] == [1, 2, 3, 5]
+    assert [i for i, _ in by_name["rec"].bad_frames] == [1, 2] and not result.ok
+    again = run_inputs([folder, recording], processor, out, options=OPTIONS)
+    assert [r.bad_frames for r in again.inputs] == [r.bad_frames for r in result.inputs]
+    assert all(r.chunks_skipped == r.chunks for r in again.inputs)
 
 
 def test_odd_sized_video_gets_a_padded_overlay(tmp_path: Path) -> None:

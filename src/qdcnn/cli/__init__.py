@@ -14,7 +14,7 @@ from typing import Any
 import typer
 from typer.core import TyperGroup
 
-from qdcnn.cli._common import ABORTS, NO_ARGS, USAGE_ERRORS, report_error
+from qdcnn.cli._common import ABORTS, NO_ARGS, USAGE_ERRORS, report_error, warnings_as_notes
 from qdcnn.cli.bench import bench_app
 from qdcnn.cli.data import synth_cmd
 from qdcnn.cli.direction import detect_lanes_cmd, evaluate_cmd, train_direction_cmd
@@ -41,7 +41,8 @@ class OneLineErrors(TyperGroup):
         **extra: Any,
     ) -> Any:
         try:
-            code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            with warnings_as_notes():
+                code = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except NO_ARGS as exc:  # ``qdcnn`` alone: the help
             context = getattr(exc, "ctx", None)
             typer.echo(context.get_help() if context is not None else str(exc))

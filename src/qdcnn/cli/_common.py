@@ -195,6 +195,22 @@ def report_note(message: object) -> None:
     err.print(f"[yellow]note:[/yellow] {escape(one_line(message))}", soft_wrap=True)
 
 
+@contextmanager
+def warnings_as_notes() -> Iterator[None]:
+    """Show each Python warning as one ``note:`` line on stderr, without Python's source
+    line: qdcnn's own (a :class:`~qdcnn.direction.feature_cache.FeatureCacheWarning`) as
+    its message, another package's with its category name in front."""
+    import warnings
+
+    def show(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> None:
+        own = category.__module__.split(".")[0] == "qdcnn"
+        report_note(message if own else f"{category.__name__}: {message}")
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
+
+
 def fail(exc: QdcnnError) -> typer.Exit:
     """Report ``exc`` as one line; the exit (status 2) for the caller to raise."""
     report_error(exc)

@@ -65,6 +65,10 @@ def run_cmd(
     """Per-frame direction, shadow fraction and lanes of every input; resumable after a crash.
 
     Writes DIR/<name>/frames.csv, timings.csv (measured ms), overlay.mp4 and DIR/summary.json.
+    Frames keep the input's numbering (video frame, place in the sorted image folder, data
+    row of the recording's label file): a bad one stays a row with status bad-row (a label
+    row that cannot be used), unreadable or failed and a note, gets one error: line, and
+    makes the exit status 1; the rest are still processed.
     A re-run with the same arguments skips finished chunks (--force redoes them). The lane
     options set the pipeline of the built-in model (without --model); a --model file
     carries the lane settings it was trained with.

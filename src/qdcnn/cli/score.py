@@ -64,6 +64,8 @@ def score_cmd(
     Balanced accuracy (the main figure), accuracy, macro-F1 and recall per class.
     Labels come from the steering with the model's label settings.
     A dataset whose labels are all one class has no balanced accuracy (its row says why).
+    Rows that give no label (steering not a number, image missing) and frames that cannot
+    be read are left out of the score, each named in a note: line (counted as skipped).
     Exit status 1 when a dataset could not be loaded (the others are still scored).
     """
     from qdcnn.experiments.score import ScoreSpec, run_score

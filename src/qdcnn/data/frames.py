@@ -31,6 +31,7 @@ from qdcnn.data.labels import (
     unit_disagreement,
     unit_free_steering,
 )
+from qdcnn.data.recording import RowError
 from qdcnn.errors import InputError, ParameterError
 
 _DEFAULT_SYNTHETIC_FRAMES = 600
@@ -61,6 +62,9 @@ class FrameSet:
         the config decides.
     notes : list of str
         Warnings for people that runners report (a given unit the values disagree with).
+    positions : ndarray of int64 or None
+        Each frame's place among the recording's data rows, skipped rows included
+        (:attr:`qdcnn.data.recording.Recording.positions`); ``None``: ``0 .. N-1``.
     """
 
     name: str
@@ -74,9 +78,18 @@ class FrameSet:
     unit: SteeringUnit = field(default_factory=SteeringUnit)
     label_threshold: float | Quantile | None = None
     notes: list[str] = field(default_factory=list)
+    positions: NDArray[np.int64] | None = None
 
     def __len__(self) -> int:
         return len(self.sources)
+
+    def in_recording_order(self) -> FrameSet | RecordingFrames:
+        """The frames numbered as the recording's rows: itself when no row was skipped,
+        else a :class:`RecordingFrames` that keeps each skipped row as a frame."""
+        skipped = [p for p in self.problems if isinstance(p, RowError)]
+        if self.positions is None or not skipped:
+            return self
+        return RecordingFrames(self, skipped)
 
     def image(self, i: int) -> NDArray[np.uint8]:
         """Frame ``i`` as RGB uint8 (raises :class:`InputError` for an unreadable file)."""
@@ -152,6 +165,47 @@ class FrameSet:
                     h.update(f"{st.st_size}:{st.st_mtime_ns}".encode())
                 except OSError:
                     h.update(b"missing")
+        return h.hexdigest()[:24]
+
+
+class RecordingFrames:
+    """The frames of a recording in its label file's order, the skipped rows included.
+
+    Frame ``k`` is the ``k``-th data row. :meth:`image` of a row the loader skipped raises
+    its :class:`~qdcnn.data.recording.RowError` (``"<file>:row <n>: <reason>"``), so a run
+    keeps the row as a frame with a status instead of renumbering the frames after it.
+    A frame source for :func:`qdcnn.runtime.engine.run_inputs`.
+    """
+
+    def __init__(self, frames: FrameSet, skipped: Sequence[RowError]) -> None:
+        assert frames.positions is not None
+        self.frames = frames
+        self.name, self.spec = frames.name, frames.spec
+        self._kept = {int(pos): k for k, pos in enumerate(frames.positions)}
+        self._skipped = {e.position: e for e in skipped}
+        self._size = len(self._kept) + len(self._skipped)
+        if set(self._kept) | set(self._skipped) != set(range(self._size)):
+            raise InputError(frames.spec, "frame positions do not cover the recording's rows")
+        self.timestamps: NDArray[np.float64] | None = None
+        if frames.timestamps is not None:
+            self.timestamps = np.full(self._size, np.nan)
+            self.timestamps[frames.positions] = frames.timestamps
+
+    def __len__(self) -> int:
+        return self._size
+
+    def image(self, i: int) -> NDArray[np.uint8]:
+        """Frame ``i``; a skipped row raises its :class:`~qdcnn.data.recording.RowError`."""
+        k = self._kept.get(i)
+        if k is None:
+            raise self._skipped[i]
+        return self.frames.image(k)
+
+    def fingerprint(self) -> str:
+        """The frames' :meth:`FrameSet.fingerprint` and every skipped row's reason."""
+        h = hashlib.sha256(self.frames.fingerprint().encode())
+        for pos in sorted(self._skipped):
+            h.update(f"{pos}:{self._skipped[pos]}\n".encode())
         return h.hexdigest()[:24]
 
 
@@ -354,6 +408,7 @@ def _load_recording(spec: str, parsed: DataSpec, steering_unit: str) -> FrameSet
         paths=list(rec.frames),
         unit=rec.unit,
         notes=[] if note is None else [note],
+        positions=rec.positions,
     )
 
 

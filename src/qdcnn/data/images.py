@@ -134,7 +134,8 @@ def _read_bytes(path: Path) -> bytes:
     try:
         info = os.stat(path)
     except FileNotFoundError:
-        raise InputError(shown, "file not found") from None
+        broken = " (a broken symbolic link)" if path.is_symlink() else ""
+        raise InputError(shown, f"file not found{broken}") from None
     except OSError as exc:
         raise InputError(shown, f"cannot read: {exc.strerror or exc}") from None
     if stat.S_ISDIR(info.st_mode):

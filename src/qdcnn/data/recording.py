@@ -20,6 +20,19 @@ from qdcnn.errors import InputError, ParameterError
 _LABELS = LabelConfig()
 
 
+class RowError(InputError):
+    """A row of a label file that was skipped: ``"<file>:row <n>: <reason>"``.
+
+    ``row`` is its 1-based line number; ``position`` its 0-based place among the file's
+    data rows (the frame number it would have had), so runs can keep it as a frame.
+    """
+
+    def __init__(self, source: str, row: int, position: int, reason: str) -> None:
+        super().__init__(f"{source}:row {row}", reason)
+        self.row = row
+        self.position = position
+
+
 @dataclass
 class Recording:
     """Frames of a driving recording with one steering value each.
@@ -45,6 +58,10 @@ class Recording:
         when the recording has no side-camera image at all.
     unit : SteeringUnit
         The unit of ``steering`` and how it was decided (``norm`` by default).
+    positions : ndarray of int64, shape (N,), or None
+        Each frame's 0-based place among the label file's data rows, skipped rows
+        included (a skipped row's place is its :class:`RowError`'s ``position``);
+        ``None``: ``0 .. N-1``.
     """
 
     root: Path
@@ -57,11 +74,14 @@ class Recording:
     left: list[Path | None] | None = None
     right: list[Path | None] | None = None
     unit: SteeringUnit = field(default_factory=SteeringUnit)
+    positions: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.frames)
         self.steering = np.asarray(self.steering, dtype=np.float64)
         self.rows = np.asarray(self.rows, dtype=np.int64)
+        if self.positions is not None:
+            self.positions = np.asarray(self.positions, dtype=np.int64)
         if self.timestamps is not None:
             self.timestamps = np.asarray(self.timestamps, dtype=np.float64)
         lengths = {
@@ -70,6 +90,7 @@ class Recording:
             "timestamps": n if self.timestamps is None else len(self.timestamps),
             "left": n if self.left is None else len(self.left),
             "right": n if self.right is None else len(self.right),
+            "positions": n if self.positions is None else len(self.positions),
         }
         for name, length in lengths.items():
             if length != n:
@@ -125,6 +146,7 @@ class Recording:
             left=pick(self.left),
             right=pick(self.right),
             unit=self.unit,
+            positions=None if self.positions is None else self.positions[take],
         )
 
 
@@ -158,6 +180,7 @@ class LabelRow:
     left: Path | None = None
     right: Path | None = None
     stamp: float = math.nan
+    position: int = -1
 
 
 @dataclass
@@ -205,13 +228,21 @@ class LabelRows:
                 suffix = "" if unit.unit == "norm" else f" ({unit.unit})"
                 self.skip(e.row, f"steering {e.text} is outside {_interval(unit.limit)}{suffix}")
         kept = self._unique(in_range)
-        errors = [
-            InputError(f"{self.source}:row {row}", reason)
+        # a row's place among the data rows: line numbers grow down the file
+        place = {row: k for k, row in enumerate(sorted(self.data_rows()))}
+        for e in kept:
+            e.position = place[e.row]
+        errors: list[InputError] = [
+            RowError(self.source, row, place[row], reason)
             for row, reason in sorted(self.skipped, key=lambda item: item[0])
         ]
         if self.strict and errors:
             raise errors[0]
         return kept, unit, errors
+
+    def data_rows(self) -> set[int]:
+        """Line numbers of every data row read, usable or not."""
+        return {e.row for e in self.entries} | {row for row, _ in self.skipped}
 
     def _unique(self, entries: list[LabelRow]) -> list[LabelRow]:
         first: dict[Path, LabelRow] = {}

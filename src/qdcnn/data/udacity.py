@@ -192,6 +192,7 @@ def load_udacity(
         steering=np.array([e.value for e in kept], dtype=np.float64),
         timestamps=timestamps,
         rows=np.array([e.row for e in kept], dtype=np.int64),
+        positions=np.array([e.position for e in kept], dtype=np.int64),
         problems=problems,
         kind="udacity",
         left=lefts if any(p is not None for p in lefts) else None,

@@ -48,6 +48,7 @@ from qdcnn._closing import ClosesOnExit, FinishesOnExit
 from qdcnn._fileio import temporary_sibling
 from qdcnn._optional import has_module, require
 from qdcnn._validation import has_shape
+from qdcnn.data.images import require_file
 from qdcnn.errors import InputError, ParameterError
 
 _VIDEO_SUFFIXES = frozenset({".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm"})
@@ -189,6 +190,7 @@ def _check_file(path: Path) -> None:
         raise InputError(path, "file not found")
     if path.is_dir():
         raise InputError(path, "is a directory, not a video file")
+    require_file(path, "video file")  # a FIFO or a device is never opened: it could block
     try:
         size = path.stat().st_size
     except OSError as exc:

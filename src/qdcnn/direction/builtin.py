@@ -84,7 +84,9 @@ def default_direction_model(
     """Lane method ``method`` trained on ``data`` (dataset specs), read from the cache if there.
 
     ``config`` is the pipeline it is trained with (default ``PipelineConfig(seed=seed)``);
-    ``reporter`` is told the training's progress (a minute when nothing is cached).
+    ``reporter`` is told the training's progress (a minute when nothing is cached). A cache
+    that cannot be written (``$QDCNN_CACHE`` read-only, full, or not a folder) does not stop
+    the work: the model is used as trained, and ``reporter`` gets a note that it was not kept.
 
     Raises
     ------
@@ -102,9 +104,16 @@ def default_direction_model(
             return DirectionModel.load(path)
         except InputError:
             pass  # an unreadable cache entry (an interrupted disk, an older format): retrain
-    model = _train_and_score(info, specs, seed, config, reporter or Reporter())
+    report = reporter or Reporter()
+    model = _train_and_score(info, specs, seed, config, report)
     if use_cache:
-        model.save(path)
+        try:
+            model.save(path)
+        except InputError as exc:  # the cache only saves time: go on with the model in hand
+            report.note(
+                f"the built-in model is not kept in the cache ({exc}); it is trained again "
+                "next time (set QDCNN_CACHE to a writable folder)"
+            )
     return model
 
 

@@ -28,6 +28,7 @@ from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import DirectionModel
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.shadow_batch import note_shared_stems
+from qdcnn.outputs import refuse_output_in_inputs
 from qdcnn.runtime.manifest import ResumableBatch
 from qdcnn.runtime.reporting import Reporter
 
@@ -140,6 +141,7 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
     """Decide a direction for every image of ``spec``, writing overlays and predictions.csv."""
     report = reporter or Reporter()
     listing = list_named_images(spec.paths)
+    refuse_output_in_inputs(spec.out, spec.paths)
     if not listing.images and not listing.missing:
         raise InputError(", ".join(map(str, spec.paths)), "no image files found")
     if spec.out.exists() and not spec.out.is_dir():

@@ -35,6 +35,7 @@ from qdcnn.direction.methods import (
     DirectionMethod,
     TrainingOptions,
     check_fit_settings,
+    check_inner_search,
     get_method,
     select_methods,
 )
@@ -452,9 +453,25 @@ def _run_k_fold(
     )
     add_failures(result, [Failure(p.source, str(p)) for p in frames.problems], report)
     result.labels = label_summary(frames, spec.config, report)
+    # before any work: one class left (always fatal later), then an inner search that cannot run
+    check_labels_usable(frames.labels(spec.config.labels), source=frames.spec)
+    splits = ContiguousKFold(spec.folds, spec.gap).split(np.zeros(len(frames)))
+    shortest = min(len(train) for train, _ in splits)
+    where = f"the shortest training set of --folds {spec.folds}"
+    check_inner_searches(spec, methods, shortest, where)
     with executor_for(spec.scheduler) as executor:
         _evaluate_all(spec, frames, methods, result, report, executor)
     return result
+
+
+def check_inner_searches(
+    spec: EvaluationSpec, methods: Sequence[DirectionMethod], n_train: int, frames_from: str
+) -> None:
+    """Refuse ``--inner-folds``/``--gap`` that leave no inner search on ``n_train`` training
+    frames (:func:`~qdcnn.direction.methods.check_inner_search`), before any work; methods
+    without a grid to search are not concerned."""
+    if any(m.estimator(spec.config, spec.training)[1] for m in methods):
+        check_inner_search(n_train, spec.inner_folds, spec.gap, frames_from=frames_from)
 
 
 def paired_comparisons(

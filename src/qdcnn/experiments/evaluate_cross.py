@@ -38,6 +38,7 @@ from qdcnn.experiments.evaluate import (
     EvaluationSpec,
     add_failures,
     array_digest,
+    check_inner_searches,
     label_summary,
     method_seeds,
     options_key,
@@ -114,6 +115,7 @@ def run_cross_evaluation(
             if frames[s].name not in result.labels:
                 summary = label_summary(frames[s], cfg, report, train=train_sets)
                 result.labels[frames[s].name] = summary
+    _check_before_training(spec, methods, [[frames[s] for s in train] for train, _ in splits])
     inputs = _Inputs(spec, frames, methods, result, report)
     for m in methods:
         for train, test in splits:
@@ -129,6 +131,19 @@ def run_cross_evaluation(
                 report.result(res.to_dict())
                 result.notes.extend(f"{res.method} on {res.dataset}: {n}" for n in res.notes)
     return result
+
+
+def _check_before_training(
+    spec: EvaluationSpec, methods: list[DirectionMethod], splits: list[list[FrameSet]]
+) -> None:
+    """Refuse, before any work, training sets of one class (always fatal later) and an
+    inner search that cannot run on the smallest training set."""
+    for train in splits:
+        y = np.concatenate([f.labels(spec.config.labels, train=train) for f in train])
+        check_labels_usable(y, source=" + ".join(f.name for f in train))
+    shortest = min(sum(len(f) for f in train) for train in splits)
+    loo = "the smallest training set of --protocol leave-one-out"
+    check_inner_searches(spec, methods, shortest, loo if spec.leave_one_out else "--train")
 
 
 class _Inputs:

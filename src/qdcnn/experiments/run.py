@@ -21,6 +21,7 @@ from qdcnn.data.frames import load_frameset, parse_data_spec
 from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.errors import ParameterError
+from qdcnn.outputs import refuse_output_in_inputs
 from qdcnn.runtime.engine import (
     InputResult,
     Progress,
@@ -91,6 +92,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     report = reporter or Reporter()
     inputs = [_input(item, spec) for item in spec.inputs]
     resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
+    refuse_output_in_inputs(spec.out, [_folder_of(item) for item in spec.inputs])
     model = direction_model(
         spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
     )
@@ -108,27 +110,47 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
         )
     for item in result.inputs:
         report.result(item.to_dict())
-        if not item.ok:
-            report.failure(Failure(item.source, _why_failed(item)))
+        for failure in _failures(item):
+            report.failure(failure)
     return result
 
 
-def _why_failed(item: InputResult) -> str:
-    """The input's error, or how many frames were bad and the first one's reason."""
+#: Bad frames of one input told one line each; the rest in one line (all are in frames.csv).
+MAX_FRAME_LINES = 50
+
+
+def _failures(item: InputResult) -> list[Failure]:
+    """The input's error, or one line per bad frame naming it and the file or row."""
     if item.error is not None:
-        return item.error
-    index, reason = item.bad_frames[0]
-    return (
-        f"{item.source}: {len(item.bad_frames)} bad frame(s), the first at frame {index}: {reason}"
-    )
+        return [Failure(item.source, item.error)]
+    lines = [
+        Failure(item.source, f"{item.source}: frame {index}: {reason}")
+        for index, reason in item.bad_frames[:MAX_FRAME_LINES]
+    ]
+    more = len(item.bad_frames) - MAX_FRAME_LINES
+    if more > 0:
+        where = item.outputs.get("frames.csv", "frames.csv")
+        lines.append(
+            Failure(item.source, f"{item.source}: {more} more bad frames (status, note: {where})")
+        )
+    return lines
 
 
 def _input(item: str, spec: RunSpec) -> Any:
     """A path as it is; a dataset spec loaded as a frame source."""
     if item.startswith(_SPEC_KINDS):
         parse_data_spec(item)
-        return load_frameset(item, seed=spec.seed)
+        # numbered as the recording's rows: a skipped row stays a frame, with its reason
+        return load_frameset(item, seed=spec.seed).in_recording_order()
     return item
+
+
+def _folder_of(item: str) -> Path:
+    """The folder an input reads: a recording spec's folder, or the path itself."""
+    if item.startswith(("udacity:", "carla:")):
+        path = Path(parse_data_spec(item).value)
+        return path if path.is_dir() else path.parent
+    return Path(item)
 
 
 def _advance(progress: Progress, bars: dict[str, Any], stack: ExitStack, report: Reporter) -> None:

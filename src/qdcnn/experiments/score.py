@@ -241,8 +241,24 @@ def _load_dataset(
     inputs, keep, unreadable = _model_inputs(frames, model, spec, report)
     if not keep.any():
         raise InputError(dataset, f"none of its {len(frames)} frames could be read")
-    skipped = len(frames.problems) + unreadable
+    _note_skipped(
+        dataset, [str(p) for p in frames.problems] + [f.error for f in unreadable], report
+    )
+    skipped = len(frames.problems) + len(unreadable)
     return _Dataset(dataset, frames.label_info(labelling), inputs, keep, skipped)
+
+
+#: Skipped rows and frames of one dataset told one line each; the rest in one line.
+MAX_SKIPPED_LINES = 50
+
+
+def _note_skipped(dataset: str, reasons: list[str], report: Reporter) -> None:
+    """One note per row or frame left out of the score, naming the file or row and why."""
+    for reason in reasons[:MAX_SKIPPED_LINES]:
+        report.note(f"{dataset}: not scored: {reason}")
+    if len(reasons) > MAX_SKIPPED_LINES:
+        more = len(reasons) - MAX_SKIPPED_LINES
+        report.note(f"{dataset}: {more} more rows or frames not scored")
 
 
 def _score_dataset(
@@ -259,12 +275,12 @@ def _score_dataset(
 
 def _model_inputs(
     frames: FrameSet, model: DirectionModel, spec: ScoreSpec, report: Reporter
-) -> tuple[NDArray[Any], NDArray[np.bool_], int]:
-    """What the model reads for each readable frame, which frames those are, and how many
-    frames could not be read."""
+) -> tuple[NDArray[Any], NDArray[np.bool_], list[Failure]]:
+    """What the model reads for each readable frame, which frames those are, and the
+    frames that could not be read."""
     if model.grouping is None:
         images, readable, failures = stack_images(frames)
-        return images[readable], readable, len(failures)
+        return images[readable], readable, failures
     from qdcnn.direction.features import compute_features
 
     with report.progress(len(frames), f"lane features ({frames.name})") as advance:
@@ -272,7 +288,7 @@ def _model_inputs(
             frames, model.config, (model.grouping,), use_cache=spec.use_cache, on_frame=advance
         )
     keep = table.readable
-    return table.features[model.grouping][keep], keep, len(table.failures)
+    return table.features[model.grouping][keep], keep, list(table.failures)
 
 
 def _predict(

@@ -28,6 +28,7 @@ from qdcnn.data.images import (
 )
 from qdcnn.data.shadow_set import index_by_stem, load_shadow_set
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.outputs import refuse_output_in_inputs
 from qdcnn.runtime.manifest import ResumableBatch
 from qdcnn.runtime.reporting import Reporter
 from qdcnn.vision.detectors import QUANTUM_DETECTORS, check_method, detect_shadows
@@ -277,6 +278,7 @@ def run_shadow_detection(
     report = reporter or Reporter()
     model = ShadowModel.load(spec.model) if spec.model else None
     listing = list_named_images(spec.paths)
+    refuse_output_in_inputs(spec.out, spec.paths)
     if spec.out.exists() and not spec.out.is_dir():
         raise InputError(spec.out, "exists and is not a folder (--out names a folder for masks)")
     quantum = spec.method in QUANTUM_DETECTORS

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -26,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.data.images import read_image
+from qdcnn.data.recording import RowError
 from qdcnn.data.video import VideoIndex, VideoReader, VideoWriter
 from qdcnn.errors import QdcnnError
 from qdcnn.runtime.inputs import FolderInput, Input, SourceInput, VideoInput
@@ -121,12 +123,18 @@ class ChunkResult:
     seconds: float
 
 
+#: ``status`` of a frame in ``frames.csv``: processed; a row of the recording's label file
+#: that was skipped; a frame or file that could not be read or decoded; processing failed.
+STATUSES = ("ok", "bad-row", "unreadable", "failed")
+
+
 @dataclass(frozen=True)
 class _Frame:
     index: int
     timestamp: float | None
     image: NDArray[np.uint8] | None
     error: str | None = None
+    status: str = "unreadable"  # why ``image`` is None
 
 
 def _iter_frames(task: ChunkTask, first: int, sources: Mapping[str, Any]) -> Iterator[_Frame]:
@@ -165,7 +173,8 @@ def _iter_frames(task: ChunkTask, first: int, sources: Mapping[str, Any]) -> Ite
             else:
                 image = np.asarray(source.image(index))  # type: ignore[union-attr]
         except QdcnnError as exc:
-            yield _Frame(index, stamp, None, " ".join(str(exc).split()))
+            status = "bad-row" if isinstance(exc, RowError) else "unreadable"
+            yield _Frame(index, stamp, None, " ".join(str(exc).split()), status)
             continue
         yield _Frame(index, stamp, image)
 
@@ -187,7 +196,7 @@ def majority_vote(history: Sequence[str | None]) -> str | None:
 
 
 def _fmt(value: float | None, digits: int = 6) -> str:
-    return "" if value is None else f"{value:.{digits}f}"
+    return "" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
 
 
 def csv_header(processor: FrameProcessor) -> list[str]:
@@ -195,7 +204,7 @@ def csv_header(processor: FrameProcessor) -> list[str]:
     (``direction_raw``, the frame's own decision, equals ``direction`` without a vote)."""
     cols = ["frame", "timestamp", "direction", "direction_raw"]
     cols += [f"p_{c}" for c in processor.classes or ()]
-    return [*cols, "shadow_fraction", "lane_status"]
+    return [*cols, "shadow_fraction", "lane_status", "status", "note"]
 
 
 def run_chunk(
@@ -272,7 +281,7 @@ class _ChunkState:
             decision = majority_vote(self.history) if outcome is not None else None
             if error is not None:
                 self.bad.append((item.index, error))
-            self.rows.writerow(_row(item, outcome, decision, self.n_classes))
+            self.rows.writerow(_row(item, outcome, decision, self.n_classes, error))
             if decision is not None:
                 self.directions[decision] += 1
             overlay_ms = self._draw(item, outcome, decision)
@@ -343,15 +352,21 @@ def _process_one(
 
 
 def _row(
-    item: _Frame, outcome: FrameOutcome | None, decision: str | None, n_classes: int
+    item: _Frame,
+    outcome: FrameOutcome | None,
+    decision: str | None,
+    n_classes: int,
+    error: str | None,
 ) -> list[Any]:
+    """One ``frames.csv`` row; a frame without an outcome gets its status and the reason."""
     raw = "" if outcome is None else outcome.direction or ""
     row: list[Any] = [item.index, _fmt(item.timestamp), decision or "", raw]
     probs = outcome.probabilities if outcome is not None else None
     row += [_fmt(p) for p in probs] if probs is not None else [""] * n_classes
     if outcome is None:
-        return [*row, "", "error"]
-    return [*row, _fmt(outcome.shadow_fraction), outcome.lane_status]
+        status = item.status if item.image is None else "failed"
+        return [*row, "", "error", status, error or ""]
+    return [*row, _fmt(outcome.shadow_fraction), outcome.lane_status, "ok", ""]
 
 
 def _overlay_writer(task: ChunkTask) -> VideoWriter | None:

@@ -23,7 +23,12 @@ empty for image folders), ``direction`` (the decision; with ``smooth=K`` the maj
 over the frame and the K - 1 frames before it), ``direction_raw`` (the frame's own decision
 before the vote; always present, equal to ``direction`` without smoothing),
 ``p_<class>`` per class when the processor gives probabilities, ``shadow_fraction``,
-``lane_status`` (or ``error`` for a frame that could not be decoded or processed).
+``lane_status`` (or ``error`` for a frame that could not be decoded or processed),
+``status`` (``ok``; ``bad-row``: a row of a recording's label file that was skipped, kept
+as a frame so the frame numbers stay the recording's rows; ``unreadable``: a frame or
+image file that could not be read or decoded; ``failed``: processing failed) and ``note``
+(why, naming the file or row; empty for ``ok``). Frame numbers are never renumbered: a
+video's frame index, a file's place in the sorted image folder, a recording's data row.
 ``timings.csv``: ``frame``, ``process_ms`` (for a processor that works in batches, the
 frame's share of its batch of :data:`BATCH_FRAMES`) and ``overlay_ms`` (drawing and
 encoding), **measured**, different on every run.
@@ -46,7 +51,7 @@ from typing import Any
 from qdcnn import __version__
 from qdcnn.data.video import MAX_VIDEO_PIXELS, check_decoder, check_encoder, default_encoder
 from qdcnn.errors import ParameterError, QdcnnError
-from qdcnn.outputs import OutputFolder, config_hash
+from qdcnn.outputs import OutputFolder, config_hash, refuse_output_in_inputs
 from qdcnn.runtime.assembly import (
     ChunkVanishedError,
     assemble,
@@ -56,6 +61,7 @@ from qdcnn.runtime.assembly import (
 )
 from qdcnn.runtime.chunks import ChunkResult, ChunkTask, FrameProcessor, csv_header, run_chunk
 from qdcnn.runtime.inputs import (
+    FolderInput,
     Input,
     Probe,
     VideoInput,
@@ -296,6 +302,7 @@ def run_inputs(
     if not isinstance(processor, FrameProcessor):
         raise ParameterError("processor", type(processor).__name__, "a FrameProcessor")
     resolved, sources = resolve_inputs(inputs)
+    refuse_output_in_inputs(out_dir, [i.path for i in resolved if isinstance(i, FolderInput)])
     own_executor = executor is None
     ex = executor or Executor()
     t0 = time.perf_counter()

@@ -200,6 +200,16 @@ def _first_readable(read: Callable[[int], NDArray[np.uint8]], n: int) -> NDArray
     return None
 
 
+def _file_mark(path: Path) -> str:
+    """Size and modification time of a folder's file; for one that cannot be examined (a
+    broken symbolic link) why, so that file is a bad frame rather than the whole folder."""
+    try:
+        ident = file_identity(path)
+    except InputError as exc:
+        return f"unusable:{exc.reason}"
+    return f"{ident['size']}:{ident['mtime_ns']}"
+
+
 def input_identity(inp: Input, sources: Mapping[str, Any]) -> dict[str, Any]:
     """What names ``inp``'s contents in the manifest (a changed input redoes its work)."""
     if isinstance(inp, VideoInput):
@@ -207,8 +217,7 @@ def input_identity(inp: Input, sources: Mapping[str, Any]) -> dict[str, Any]:
     if isinstance(inp, FolderInput):
         h = hashlib.sha256()
         for f in inp.files:
-            ident = file_identity(f)
-            h.update(f"{f.name}:{ident['size']}:{ident['mtime_ns']}\n".encode())
+            h.update(f"{f.name}:{_file_mark(f)}\n".encode())
         return {"kind": "images", "path": str(inp.path.resolve()), "files": h.hexdigest()}
     source = sources[inp.name]
     fingerprint = getattr(source, "fingerprint", None)
