@@ -42,8 +42,9 @@ def _one_torch_thread():  # type: ignore[no-untyped-def]
 
 
 def _head(n: int, layers: int, reupload: bool = False, noise=None) -> QuantumHead:  # type: ignore[no-untyped-def]
+    """The undressed head: its uniform random layer angles exercise the whole circuit."""
     torch.manual_seed(n + 10 * layers)
-    return QuantumHead(5, n, layers, reupload=reupload, noise=noise).double()
+    return QuantumHead(5, n, layers, reupload=reupload, noise=noise, dressed=False).double()
 
 
 def _pennylane_head(n: int, layers: int, reupload: bool):  # type: ignore[no-untyped-def]
@@ -111,7 +112,7 @@ def test_head_under_noise_equals_numpy_density_matrix() -> None:
 
 def test_head_shots_only_in_eval_mode() -> None:
     torch.manual_seed(0)
-    head = QuantumHead(5, 2, 1, shots=512, shot_seed=4).double()
+    head = QuantumHead(5, 2, 1, shots=512, shot_seed=4, dressed=False).double()
     emb = torch.randn(300, 5, dtype=torch.float64)
     exact = head.circuit.expectations(head.angles(emb), head.weights.reshape(-1)).detach()
     np.testing.assert_allclose(head.expectations(emb).detach().numpy(), exact.numpy())

@@ -82,9 +82,21 @@ def test_trains_a_custom_network_to_high_accuracy() -> None:
         "train_loss",
         "val_loss",
         "val_accuracy",
+        "val_balanced_accuracy",
+        "val_predictions",
         "lr",
+        "grad_norm_trunk",
+        "grad_norm_head",
+        "angle_std",
+        "angle_min",
+        "angle_max",
+        "feature_std",
+        "feature_min",
+        "feature_max",
         "seconds",
     }
+    assert sum(result.history[0]["val_predictions"]) == result.n_val
+    assert result.history[0]["grad_norm_head"] is None  # TinyCNN has no head
     assert (result.n_train, result.n_val, result.n_extra) == (
         len(split_train_val(120, 0.15, blocks=4, gap=5)[0]),
         len(split_train_val(120, 0.15, blocks=4, gap=5)[1]),
