@@ -95,7 +95,8 @@ class _DressedHead(nn.Module):
             out: torch.Tensor = self.readout(self.readout_gain * features)
             return out
         scale = self.output_scale.to(features.dtype)
-        return self.readout(scale * features + self.output_bias.to(features.dtype))  # type: ignore[no-any-return]
+        dressed: torch.Tensor = self.readout(scale * features + self.output_bias.to(features.dtype))
+        return dressed
 
     def features(self, embedding: torch.Tensor) -> torch.Tensor:
         """The features the read-out sees before scaling, ``(B, n_qubits)``."""

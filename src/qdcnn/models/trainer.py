@@ -581,7 +581,9 @@ class _Loop:
         record["seconds"] = time.perf_counter() - start
         return record
 
-    def train_step(self, rows: NDArray[np.int64]) -> tuple[float, float, tuple[float, float | None]]:
+    def train_step(
+        self, rows: NDArray[np.int64]
+    ) -> tuple[float, float, tuple[float, float | None]]:
         """One optimisation step; the batch's loss, its summed class weight and the
         gradient norms of the trunk and of the head."""
         from qdcnn.models.augment import augment_batch
@@ -670,7 +672,8 @@ def _gradient_norms(network: nn.Module) -> tuple[float, float | None]:
     """L2 norms of the gradient over everything but the ``head``, and over the head."""
     head = _head_of(network)
     in_head = {id(p) for p in head.parameters()} if head is not None else set()
-    trunk, top = [], []
+    trunk: list[torch.Tensor] = []
+    top: list[torch.Tensor] = []
     for p in network.parameters():
         if p.grad is not None:
             (top if id(p) in in_head else trunk).append(p.grad.detach().float().square().sum())
@@ -704,7 +707,8 @@ class _HeadInputs:
         out: dict[str, float | None] = dict.fromkeys(_SPREAD_KEYS)
         if not self.inputs or self.head is None:
             return out
-        values = self.head.diagnostics(torch.cat(self.inputs))
+        diagnose = getattr(self.head, "diagnostics")  # noqa: B009 (a Module attribute)
+        values = diagnose(torch.cat(self.inputs))
         for key, name in (("angles", "angle"), ("features", "feature")):
             v = values.get(key)
             if v is None or not len(v):
