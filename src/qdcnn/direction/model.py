@@ -266,4 +266,7 @@ def train_direction_model(
         "training_accuracy": float(np.mean(predictions == y)),
         "chosen_hyperparameters": chosen,
     }
+    for key, attribute in (("history", "history_"), ("restarts", "restarts_"), ("seed", "seed_")):
+        if hasattr(fitted, attribute):  # CNNs and hybrids: per-epoch diagnostics
+            summary[key] = getattr(fitted, attribute)
     return DirectionModel(m.name, config, fitted, trained_on, summary)
