@@ -133,7 +133,7 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="Write the results (with histories) here.")
     args = parser.parse_args()
     x, y = load_piece(args.data, args.start, args.stop)
-    n_test = int(round(len(y) * args.test_fraction))
+    n_test = round(len(y) * args.test_fraction)
     train, test = slice(0, len(y) - n_test - args.gap), slice(len(y) - n_test, len(y))
     train_counts = np.bincount(y[train], minlength=3).tolist()
     test_counts = np.bincount(y[test], minlength=3).tolist()

@@ -71,7 +71,7 @@ def test_a_frozen_trunk_stays_as_it_was() -> None:
 def test_twin_and_ablations_share_the_cached_trunk() -> None:
     t = trainer(epochs=2)
     key = data_key(samples(), t.settings, "tiny")
-    first, trunk = fit_transfer(t, build, "quantum", samples(), cache_key=key)
+    _, trunk = fit_transfer(t, build, "quantum", samples(), cache_key=key)
     assert cached_trunk(key) is trunk
     twin, twin_trunk = fit_transfer(t, build, "classical", samples(), cache_key=key)
     assert twin_trunk is trunk and {r["stage"] for r in twin.history} == {"head", "finetune"}
