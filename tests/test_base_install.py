@@ -62,40 +62,19 @@ def test_a_command_that_needs_a_missing_extra_names_it(
 def test_the_base_commands_run_end_to_end(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     synth = _qdcnn(
-        "synth",
-        "--preset",
-        "track2",
-        "--n",
-        "12",
-        "--seed",
-        "3",
-        "--out",
-        str(tmp_path / "s"),
+        "synth", "--preset", "track2", "--n", "12", "--seed", "3", "--out", str(tmp_path / "s"),
         env_cache=cache,
     )
     assert synth.returncode == 0, synth.stderr
     shadows = _qdcnn(
-        "detect-shadows",
-        str(tmp_path / "s" / "shadows" / "images"),
-        "--method",
-        "uu",
-        "--out",
-        str(tmp_path / "masks"),
-        "--json",
-        env_cache=cache,
+        "detect-shadows", str(tmp_path / "s" / "shadows" / "images"), "--method", "uu",
+        "--out", str(tmp_path / "masks"), "--json", env_cache=cache,
     )
     assert shadows.returncode == 0, shadows.stderr
     assert json.loads(shadows.stdout.splitlines()[-1])["n_images"] == 12
     evaluate = _qdcnn(
-        "evaluate",
-        "--data",
-        "synthetic:track2:120",
-        "--method",
-        "image-split-uu",
-        "--folds",
-        "2",
-        "--json",
-        env_cache=cache,
+        "evaluate", "--data", "synthetic:track2:120", "--method", "image-split-uu",
+        "--folds", "2", "--json", env_cache=cache,
     )
     assert evaluate.returncode == 0, evaluate.stderr
     assert 0.0 <= json.loads(evaluate.stdout.splitlines()[0])["accuracy"] <= 1.0

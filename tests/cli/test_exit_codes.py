@@ -49,13 +49,7 @@ COMMANDS: dict[str, tuple[Args, str]] = {
     ),
     "train-direction --weights": (
         lambda p, o: [
-            "train-direction",
-            "--data",
-            "synthetic:track1:10",
-            "--out",
-            str(o),
-            "--weights",
-            p,
+            "train-direction", "--data", "synthetic:track1:10", "--out", str(o), "--weights", p,
         ],
         "file",
     ),

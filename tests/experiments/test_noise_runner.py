@@ -174,7 +174,9 @@ def test_registry_names_give_the_shorthand_rows() -> None:
         NoiseSweepSpec(methods=("uu",), groupings=("image-split", "kmeans"), **SMALL)
     ).to_dicts()
     named = run_noise_sweep(
-        NoiseSweepSpec(methods=("image-split-uu", "kmeans-uu"), groupings=("spectral",), **SMALL)
+        NoiseSweepSpec(
+            methods=("image-split-uu", "kmeans-uu"), groupings=("spectral",), **SMALL
+        )
     ).to_dicts()
     assert named == shorthand
     assert [r["grouping"] for r in named[::3]] == ["image-split", "image-split", "kmeans", "kmeans"]

@@ -28,10 +28,8 @@ def test_an_existing_recording_is_refused_and_left_as_it_was(tmp_path: Path) -> 
     images = sorted(p.name for p in (out / "IMG").iterdir())
     code, err = _synth(out, n=2)
     assert code == 2
-    assert (
-        err.strip() == f"error: {out}: folder exists and is not empty: use --force to replace "
+    assert err.strip() == f"error: {out}: folder exists and is not empty: use --force to replace "\
         "what it holds"
-    )
     assert (out / "driving_log.csv").read_bytes() == log
     assert sorted(p.name for p in (out / "IMG").iterdir()) == images
 

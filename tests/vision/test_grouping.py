@@ -480,7 +480,9 @@ def test_a_pair_that_cannot_be_a_road_is_flagged_and_keeps_its_slopes(
 
 @pytest.mark.parametrize("method", GROUPINGS)
 def test_a_normal_road_in_the_roi_is_ok(method: str) -> None:
-    result = lane_features(road(PAIRS["straight"]), UDACITY, method, roi_rows=roi_rows(UDACITY.roi))
+    result = lane_features(
+        road(PAIRS["straight"]), UDACITY, method, roi_rows=roi_rows(UDACITY.roi)
+    )
     assert result.status == "ok"
 
 
