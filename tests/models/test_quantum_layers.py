@@ -329,11 +329,11 @@ def test_dressed_head_is_bounded_scaled_and_starts_near_the_identity() -> None:
     assert head.dressed and float(head.weights.detach().abs().max()) < 0.05  # near identity
     assert torch.equal(head.output_scale, torch.ones(4, dtype=torch.float64))
     emb = torch.randn(16, 5, dtype=torch.float64) * 100  # saturates the projection
-    angles = head.angles(emb)
-    assert float(angles.detach().abs().max()) <= math.pi / 2 + 1e-9  # sigmoid(0) = 1/2
+    shifted = head.angles(emb).detach() - math.pi / 2  # RY(pi / 2 + x): x bounded
+    assert float(shifted.abs().max()) <= math.pi / 2 + 1e-9  # sigmoid(0) = 1/2
     with torch.no_grad():
         head.input_scale.fill_(50.0)
-    assert float(head.angles(emb).detach().abs().max()) <= math.pi
+    assert float((head.angles(emb).detach() - math.pi / 2).abs().max()) <= math.pi
     z = head.expectations(emb)
     expected = head.readout(head.output_scale * z + head.output_bias)
     torch.testing.assert_close(head(emb), expected)
@@ -385,3 +385,17 @@ def test_fixed_ablation_keeps_its_circuit_and_trains_the_rest() -> None:
     assert torch.equal(head.weights, before)
     assert head.readout.weight.grad is not None and head.projection.weight.grad is not None
     assert "weights" in head.state_dict()  # saved with the model
+
+
+def test_dressed_encoding_keeps_the_sign_of_the_projection() -> None:
+    """From |0>, RY(pi/2 + x) gives <Z> = -sin(x): odd, so -x and x stay apart, and a
+    saturated projection (x = +-pi/2) reads -+1, not 0 as cos(x) would."""
+    head = QuantumHead(5, 3, 1, entangle=False).double()
+    with torch.no_grad():
+        head.weights.zero_()  # the identity layer
+    emb = torch.randn(8, 5, dtype=torch.float64)
+    x = head.angles(emb) - math.pi / 2
+    torch.testing.assert_close(head.expectations(emb), -torch.sin(x))
+    with torch.no_grad():
+        head.projection.bias.zero_()
+    torch.testing.assert_close(head.expectations(-emb), -head.expectations(emb))

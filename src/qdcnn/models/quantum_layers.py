@@ -52,6 +52,11 @@ READOUT_GAIN = 10.0
 OUTPUT_SCALE_INIT = 1.0
 #: Standard deviation of the dressed heads' near-identity initial layer angles.
 NEAR_IDENTITY_STD = 0.01
+#: The dressed quantum head encodes ``RY(pi / 2 + x_i)``: from ``|0>`` that is ``|+>`` then
+#: ``RY(x_i)`` (the dressed circuit's Hadamard layer), so ``<Z_i> = -sin(x_i)`` near the
+#: identity, odd in ``x_i``; ``RY(x_i)`` alone gives ``cos(x_i)``, which loses the sign of
+#: the projection and is 0 wherever it saturates at ``+-pi / 2`` (docs/hybrid-collapse.md).
+ENCODING_OFFSET = math.pi / 2
 
 
 class _DressedHead(nn.Module):
@@ -125,8 +130,9 @@ class QuantumHead(_DressedHead):
     circuit is exactly PennyLane's ``AngleEmbedding(rotation="Y")`` followed by
     ``StronglyEntanglingLayers``; ``weights`` has PennyLane's shape ``(n_layers, n_qubits, 3)``.
     Dressed, the weights start near the identity (normal, standard deviation
-    :data:`NEAR_IDENTITY_STD`, from torch's seeded generator); undressed, uniform in
-    ``[0, 2 pi)`` (PennyLane's initialisation).
+    :data:`NEAR_IDENTITY_STD`, from torch's seeded generator) and qubit ``i`` gets
+    ``RY(pi / 2 + x_i)`` (:data:`ENCODING_OFFSET`); undressed, the weights are uniform in
+    ``[0, 2 pi)`` (PennyLane's initialisation) and the encoding is ``RY(x_i)``.
 
     Parameters
     ----------
@@ -199,6 +205,12 @@ class QuantumHead(_DressedHead):
         self._add_readout(num_classes)
         self._shot_rng = np.random.default_rng(shot_seed)
         self.set_noise(noise)
+
+    def angles(self, embedding: torch.Tensor) -> torch.Tensor:
+        """The ``RY`` angles ``(B, n_qubits)``: dressed, :data:`ENCODING_OFFSET` plus the
+        bounded encoding (in ``(-pi / 2, 3 pi / 2)``); undressed, ``pi tanh(W e + b)``."""
+        x = super().angles(embedding)
+        return x + ENCODING_OFFSET if self.dressed else x
 
     def _template(self) -> Any:
         return head_template(
