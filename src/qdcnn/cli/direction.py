@@ -186,9 +186,7 @@ def evaluate_cmd(
             folds,
             gap,
             inner_folds,
-            training_options(
-                epochs, weights, threads, not as_json, context, transfer=transfer
-            ),
+            training_options(epochs, weights, threads, not as_json, context, transfer=transfer),
             use_cache=cache,
             scheduler=scheduler,
             train=tuple(train or ()),
