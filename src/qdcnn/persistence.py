@@ -34,6 +34,9 @@ from qdcnn._fileio import atomic_write_bytes, atomic_write_text
 from qdcnn.errors import InputError
 
 _METADATA_KEY = "qdcnn"
+#: Kind and format version of a trained direction model (:mod:`qdcnn.direction.model`).
+DIRECTION_MODEL_KIND = "qdcnn-direction-model"
+DIRECTION_MODEL_VERSION = 2
 #: JSON model files larger than this are refused before parsing.
 MAX_JSON_BYTES = 16 * 2**20
 #: Deepest nesting accepted in a JSON header (the parser recurses per level).

@@ -428,9 +428,12 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
     assert "note: skipping dnn-resnet50: no GPU" in res.stderr
     *rows, paired = json_lines(res.stdout)
     methods = [row["method"] for row in rows]
-    # each hybrid against its classical twin on the same frames
+    # each hybrid against its classical twin (and its head ablations) on the same frames
     assert [(c["a"], c["b"]) for c in paired["comparisons"]] == [
         ("qdcnn-head", "qdcnn-head-classical"),
+        ("qdcnn-head", "qdcnn-head-noent"),
+        ("qdcnn-head", "qdcnn-head-fixed"),
+        ("qdcnn-head", "qdcnn-head-linear"),
         ("qdcnn-uuconv", "qdcnn-uuconv-classical"),
         ("qdcnn-quanv", "qdcnn-quanv-classical"),
     ]
@@ -438,6 +441,9 @@ def test_evaluate_all_leaves_out_what_cannot_run_here_and_says_so(
         "dnn-pilotnet",
         "qdcnn-head",
         "qdcnn-head-classical",
+        "qdcnn-head-noent",
+        "qdcnn-head-fixed",
+        "qdcnn-head-linear",
         "qdcnn-uuconv",
         "qdcnn-uuconv-classical",
         "qdcnn-quanv",

@@ -36,7 +36,7 @@ def test_the_paper_methods_and_baselines_are_registered_once() -> None:
     assert frames[0] == "dnn-pilotnet" and frames[-1] == "dnn-resnet50"
     assert set(frames[1:-1]) == {
         f"qdcnn-{k}{t}" for k in ("head", "uuconv", "quanv") for t in ("", "-classical")
-    }
+    } | {f"qdcnn-head-{a}" for a in ("noent", "fixed", "linear")}
     assert get_method("dnn-resnet50").needs_gpu and get_method("dnn-pilotnet").needs_torch
 
 

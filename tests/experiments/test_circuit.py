@@ -174,3 +174,27 @@ def test_a_new_kind_is_one_table_entry(monkeypatch: pytest.MonkeyPatch) -> None:
         ParameterError, match="only with 'circuit vqc' or 'circuit head' or 'circuit pair'"
     ):
         CircuitSpec("uu", theta_c="1", theta_x="1", x="1,2")
+
+
+def test_a_saved_product_head_is_drawn_without_entangling_gates(tmp_path: Path) -> None:
+    """The -noent ablation's circuit has no CNOTs; drawn from its model file, neither."""
+    pytest.importorskip("torch")
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.model import DirectionModel
+    from qdcnn.models import CNNDirectionClassifier
+    from qdcnn.models.networks import build_network
+    from qdcnn.quantum.templates import head_circuit
+
+    for head, entangled in (("product", False), ("quantum", True)):
+        network = build_network("qdcnn-head", seed=0, head=head)
+        clf = CNNDirectionClassifier.from_network(
+            network, "qdcnn-head", device="cpu", network_params={"head": head}
+        )
+        path = DirectionModel("qdcnn-head", PipelineConfig(), clf, "toy", {}).save(
+            tmp_path / f"{head}.safetensors"
+        )
+        res = inspect_circuit(CircuitSpec("head", model=path, x="0.1,0.2,0.3,0.4"), Collector())
+        weights = network.head.weights.detach().double().numpy()
+        expected = probabilities(head_circuit([[0.1, 0.2, 0.3, 0.4]], weights, entangle=entangled))
+        np.testing.assert_allclose(res.probabilities, expected[0], atol=1e-12)
+        assert ("■" in res.diagram or "cx" in res.diagram.lower()) == entangled

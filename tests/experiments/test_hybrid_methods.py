@@ -139,3 +139,33 @@ def test_the_noise_sweep_runs_a_hybrid() -> None:
     )
     by_p = {r.p: r.accuracy for r in rows}
     assert by_p[0.0] > 0.6 and by_p[1.0] <= 0.5  # fully depolarised, the head sees nothing
+
+
+def test_head_ablations_are_methods_derived_from_the_table() -> None:
+    from qdcnn.direction.methods import HYBRID_RECIPE
+    from qdcnn.models.hybrid import build_hybrid, trainable_parameters
+    from qdcnn.models.specs import HEAD_ABLATIONS, HYBRID_NETWORKS
+
+    names = [name for h in HYBRID_NETWORKS for name, _ in h.ablations]
+    assert names == [f"qdcnn-head-{a.suffix}" for a in HEAD_ABLATIONS]
+    for name, ablation in HYBRID_NETWORKS[0].ablations:
+        method = get_method(name)
+        estimator, grid = method.estimator(PipelineConfig(), OPTIONS)
+        assert method.kind == "hybrid-ablation" and grid == {}
+        assert estimator.network_params == {"head": ablation.head}
+        assert estimator.arch == "qdcnn-head" and method.quantum == (ablation.head != "linear")
+        assert all(getattr(estimator, k) == v for k, v in HYBRID_RECIPE.items())
+    twin = get_method("qdcnn-head-classical").estimator(PipelineConfig(), OPTIONS)[0]
+    assert all(getattr(twin, k) == v for k, v in HYBRID_RECIPE.items())  # the same training
+    counts = {
+        h: trainable_parameters(build_hybrid("qdcnn-head", head=h)) for h in ("quantum", "fixed")
+    }
+    assert counts["quantum"] - counts["fixed"] == 2 * 4 * 3  # the circuit's angles do not train
+
+
+def test_transfer_and_from_are_for_hybrids_only(tmp_path: Path) -> None:
+    for options in (TrainingOptions(transfer=True), TrainingOptions(from_model=tmp_path)):
+        with pytest.raises(ParameterError, match="dnn-pilotnet|pilotnet is not a hybrid"):
+            get_method("dnn-pilotnet").estimator(PipelineConfig(), options)
+        estimator = get_method("qdcnn-head-noent").estimator(PipelineConfig(), options)[0]
+        assert estimator.transfer == options.transfer

@@ -91,10 +91,11 @@ def _toy_loss_after(head: torch.nn.Module, steps: int) -> float:
 
 @pytest.mark.parametrize("head_cls", [QuantumHead, RingMLPHead])
 def test_readout_gain_lets_bounded_features_reach_confident_logits(head_cls: type) -> None:
+    """The undressed heads' fixed gain (the dressed heads train their output scale)."""
     torch.manual_seed(0)
-    plain = head_cls(5, 4, 2, readout_gain=1.0)
+    plain = head_cls(5, 4, 2, readout_gain=1.0, dressed=False)
     torch.manual_seed(0)
-    gained = head_cls(5, 4, 2, readout_gain=10.0)
+    gained = head_cls(5, 4, 2, readout_gain=10.0, dressed=False)
     assert _toy_loss_after(gained, 40) < 0.5 * _toy_loss_after(plain, 40)
 
 

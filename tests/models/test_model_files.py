@@ -258,3 +258,66 @@ def test_non_finite_history_values_are_stored_as_null(tmp_path: Path) -> None:
     clf.best_epoch_ = 1
     loaded = CNNDirectionClassifier.load(clf.save(tmp_path / "nan.safetensors"))
     assert loaded.history_ == [{"epoch": 1, "train_loss": None, "val_loss": None}]
+
+
+# ------------------------------------------ hybrid files across the dressed heads (issue 20)
+
+
+def hybrid(**params: Any) -> CNNDirectionClassifier:
+    kw = {"head": "quantum", **params.pop("network_params", {})}
+    network = build_network("qdcnn-head", seed=2, **kw)
+    return CNNDirectionClassifier.from_network(
+        network,
+        "qdcnn-head",
+        device="cpu",
+        num_threads=1,
+        network_params={"head": "quantum"},
+        **params,
+    )
+
+
+def test_a_hybrid_saved_before_the_dressed_heads_loads_as_it_was(tmp_path: Path) -> None:
+    old = hybrid(network_params={"dressed": False})
+    meta, arrays = old.fitted_state()
+    del meta["head_format"]  # what files written before the dressed heads hold
+    save_model(tmp_path / "old.safetensors", MODEL_KIND, MODEL_FORMAT_VERSION, meta, arrays)
+    loaded = CNNDirectionClassifier.load(tmp_path / "old.safetensors")
+    assert not loaded.model_.head.dressed and loaded.model_.head.readout_gain == 10.0
+    np.testing.assert_array_equal(loaded.predict_proba(FRAMES), old.predict_proba(FRAMES))
+    new = hybrid()
+    new.save(tmp_path / "new.safetensors")
+    again = CNNDirectionClassifier.load(tmp_path / "new.safetensors")
+    assert again.model_.head.dressed
+    np.testing.assert_array_equal(again.predict_proba(FRAMES), new.predict_proba(FRAMES))
+    assert again.restarts_ == [] and again.seed_ == 0
+
+
+def test_hybrid_head_format_and_restarts_are_checked(tmp_path: Path) -> None:
+    source = hybrid().save(tmp_path / "new.safetensors")
+    bad = rewrite(source, tmp_path / "future.safetensors", meta={"head_format": 3})
+    assert "head_format 3 is not one this qdcnn reads" in load_error(bad)
+    # an undressed network under a dressed header: the arrays do not fit
+    old = hybrid(network_params={"dressed": False}).save(tmp_path / "old.safetensors")
+    header, stored = load_model(old, MODEL_KIND, {MODEL_FORMAT_VERSION})
+    save_model(tmp_path / "lie.safetensors", MODEL_KIND, MODEL_FORMAT_VERSION, header.meta, stored)
+    assert "missing 3 keys such as head.input_scale" in load_error(tmp_path / "lie.safetensors")
+    for field, value in (("restarts", {"seed": 1}), ("seed_used", -1)):
+        wrong = rewrite(source, tmp_path / f"{field}.safetensors", meta={field: value})
+        assert field in load_error(wrong)
+
+
+def test_a_trunk_from_another_network_is_refused_in_one_line(tmp_path: Path) -> None:
+    source = hybrid().save(tmp_path / "head.safetensors")
+    pilot = untrained().save(tmp_path / "pilotnet.safetensors")
+    trunk = CNNDirectionClassifier("qdcnn-head", trunk_from=source).read_trunk()
+    assert set(trunk) == {k for k in hybrid().model_.state_dict() if k.startswith("trunk.")}
+    cases = [
+        (("qdcnn-uuconv", {}), source, "its architecture is 'qdcnn-head'"),
+        (("qdcnn-head", {"context": 2}), source, "its frames per input (context) is 1"),
+        (("qdcnn-head", {"crop": (0.2, 0.9)}), source, "its input is"),
+        (("qdcnn-head", {}), pilot, "its architecture is 'pilotnet'"),
+    ]
+    for (arch, params), path, message in cases:
+        with pytest.raises(InputError) as err:
+            CNNDirectionClassifier(arch, trunk_from=path, **params).read_trunk()
+        assert message in str(err.value) and "\n" not in str(err.value)

@@ -42,8 +42,9 @@ def _one_torch_thread():  # type: ignore[no-untyped-def]
 
 
 def _head(n: int, layers: int, reupload: bool = False, noise=None) -> QuantumHead:  # type: ignore[no-untyped-def]
+    """The undressed head: its uniform random layer angles exercise the whole circuit."""
     torch.manual_seed(n + 10 * layers)
-    return QuantumHead(5, n, layers, reupload=reupload, noise=noise).double()
+    return QuantumHead(5, n, layers, reupload=reupload, noise=noise, dressed=False).double()
 
 
 def _pennylane_head(n: int, layers: int, reupload: bool):  # type: ignore[no-untyped-def]
@@ -111,7 +112,7 @@ def test_head_under_noise_equals_numpy_density_matrix() -> None:
 
 def test_head_shots_only_in_eval_mode() -> None:
     torch.manual_seed(0)
-    head = QuantumHead(5, 2, 1, shots=512, shot_seed=4).double()
+    head = QuantumHead(5, 2, 1, shots=512, shot_seed=4, dressed=False).double()
     emb = torch.randn(300, 5, dtype=torch.float64)
     exact = head.circuit.expectations(head.angles(emb), head.weights.reshape(-1)).detach()
     np.testing.assert_allclose(head.expectations(emb).detach().numpy(), exact.numpy())
@@ -267,3 +268,134 @@ def test_training_after_a_prediction_in_the_same_process() -> None:
     loss = fresh(torch.randn(4, 5)).sum()
     loss.backward()
     assert fresh.weights.grad is not None and torch.isfinite(fresh.weights.grad).all()
+
+
+# ---------------------------------------------------------------- the dressed heads (issue 20)
+
+
+def _dressed(head_cls: type = QuantumHead, **kw) -> torch.nn.Module:  # type: ignore[no-untyped-def]
+    torch.manual_seed(5)
+    head = head_cls(5, 3, 2, **kw).double()
+    with torch.no_grad():  # away from the starting values, so every term matters
+        head.input_scale.copy_(torch.tensor([0.3, -0.4, 1.1]))
+        head.output_scale.copy_(torch.tensor([1.5, 0.7, 2.0]))
+        head.output_bias.copy_(torch.tensor([0.1, -0.2, 0.3]))
+    return head
+
+
+@pytest.mark.parametrize("head_cls", [QuantumHead, RingMLPHead])
+def test_dressed_head_gradients_equal_finite_differences(head_cls: type) -> None:
+    from torch.func import functional_call
+
+    head = _dressed(head_cls)
+    emb = torch.randn(4, 5, dtype=torch.float64)
+    names = [n for n, _ in head.named_parameters()]
+    params = tuple(p.detach().clone().requires_grad_(True) for p in head.parameters())
+
+    def logits(*values: torch.Tensor) -> torch.Tensor:
+        out: torch.Tensor = functional_call(head, dict(zip(names, values, strict=True)), (emb,))
+        return out
+
+    assert {"input_scale", "output_scale", "output_bias"} <= set(names)
+    assert torch.autograd.gradcheck(logits, params, eps=1e-6, atol=1e-7)
+
+
+def test_dressed_head_weight_gradients_equal_the_parameter_shift_rule() -> None:
+    """Every layer angle enters one Pauli rotation (Rot = RZ RY RZ): the gradient of
+    ``<Z_i>`` is half the difference of the circuit at the angle plus and minus pi / 2."""
+    head = _dressed(reupload=True)
+    emb = torch.randn(3, 5, dtype=torch.float64)
+    coef = torch.randn(3, 3, dtype=torch.float64)
+    x = head.angles(emb).detach()
+
+    def objective(w: torch.Tensor) -> torch.Tensor:
+        return (head.circuit.expectations(x, w.reshape(-1)) * coef).sum()
+
+    w0 = head.weights.detach().clone().requires_grad_(True)
+    (autograd,) = torch.autograd.grad(objective(w0), w0)
+    shifted = torch.zeros_like(autograd)
+    with torch.no_grad():
+        for index in np.ndindex(*w0.shape):
+            plus, minus = w0.detach().clone(), w0.detach().clone()
+            plus[index] += math.pi / 2
+            minus[index] -= math.pi / 2
+            shifted[index] = (objective(plus) - objective(minus)) / 2
+    np.testing.assert_allclose(autograd.numpy(), shifted.numpy(), atol=1e-12)
+
+
+def test_dressed_head_is_bounded_scaled_and_starts_near_the_identity() -> None:
+    torch.manual_seed(0)
+    head = QuantumHead(5, 4, 2).double()
+    assert head.dressed and float(head.weights.detach().abs().max()) < 0.05  # near identity
+    assert torch.equal(head.output_scale, torch.ones(4, dtype=torch.float64))
+    emb = torch.randn(16, 5, dtype=torch.float64) * 100  # saturates the projection
+    shifted = head.angles(emb).detach() - math.pi / 2  # RY(pi / 2 + x): x bounded
+    assert float(shifted.abs().max()) <= math.pi / 2 + 1e-9  # sigmoid(0) = 1/2
+    with torch.no_grad():
+        head.input_scale.fill_(50.0)
+    assert float((head.angles(emb).detach() - math.pi / 2).abs().max()) <= math.pi
+    z = head.expectations(emb)
+    expected = head.readout(head.output_scale * z + head.output_bias)
+    torch.testing.assert_close(head(emb), expected)
+    # near the identity, <Z_i> follows the encoding: not constant over the batch
+    assert float(QuantumHead(5, 4, 2).double().expectations(emb[:8] / 100).std(0).min()) > 0.01
+    twin = RingMLPHead(5, 4, 2)
+    assert float((twin.layers.detach()[..., 0] - 1).abs().max()) < 0.05
+
+
+def test_dressed_heads_keep_equal_parameter_counts() -> None:
+    for n, layers, features in [(1, 1, 3), (4, 2, 10), (5, 3, 64)]:
+        for reupload in (False, True):
+            q = QuantumHead(features, n, layers, reupload=reupload)
+            c = RingMLPHead(features, n, layers)
+            count = [sum(p.numel() for p in m.parameters() if p.requires_grad) for m in (q, c)]
+            assert count[0] == count[1]
+            undressed = QuantumHead(features, n, layers, dressed=False)
+            assert sum(p.numel() for p in undressed.parameters()) == count[0] - 3 * n
+
+
+def test_product_ablation_has_no_entangling_gate_and_factorises() -> None:
+    head = QuantumHead(5, 4, 3, entangle=False).double()
+    assert not any(g.name == "cx" for g in head.circuit.template.gates)
+    assert any(g.name == "cx" for g in QuantumHead(5, 4, 3).circuit.template.gates)
+    emb = torch.randn(6, 5, dtype=torch.float64)
+    circuits = head.circuits(emb)
+    assert all(len(g.qubits) == 1 for g in circuits.gates)
+    # a product state: each <Z_i> depends on its own angle only
+    x = head.angles(emb).detach().requires_grad_(True)
+    z = head.circuit.expectations(x, head.weights.reshape(-1))
+    (jac,) = torch.autograd.grad(z[:, 0].sum(), x)
+    assert float(jac[:, 1:].abs().max()) < 1e-12
+
+
+def test_fixed_ablation_keeps_its_circuit_and_trains_the_rest() -> None:
+    torch.manual_seed(0)
+    head = QuantumHead(5, 3, 2, trainable_circuit=False, circuit_seed=7)
+    again = QuantumHead(5, 3, 2, trainable_circuit=False, circuit_seed=7)
+    assert torch.equal(head.weights, again.weights)  # seeded, not torch's global state
+    assert "weights" in dict(head.named_buffers())
+    assert "weights" not in dict(head.named_parameters())
+    before = head.weights.clone()
+    opt = torch.optim.AdamW(head.parameters(), lr=0.1)
+    y = torch.arange(30) % 3
+    for _ in range(3):
+        opt.zero_grad()
+        torch.nn.functional.cross_entropy(head(torch.randn(30, 5)), y).backward()
+        opt.step()
+    assert torch.equal(head.weights, before)
+    assert head.readout.weight.grad is not None and head.projection.weight.grad is not None
+    assert "weights" in head.state_dict()  # saved with the model
+
+
+def test_dressed_encoding_keeps_the_sign_of_the_projection() -> None:
+    """From |0>, RY(pi/2 + x) gives <Z> = -sin(x): odd, so -x and x stay apart, and a
+    saturated projection (x = +-pi/2) reads -+1, not 0 as cos(x) would."""
+    head = QuantumHead(5, 3, 1, entangle=False).double()
+    with torch.no_grad():
+        head.weights.zero_()  # the identity layer
+    emb = torch.randn(8, 5, dtype=torch.float64)
+    x = head.angles(emb) - math.pi / 2
+    torch.testing.assert_close(head.expectations(emb), -torch.sin(x))
+    with torch.no_grad():
+        head.projection.bias.zero_()
+    torch.testing.assert_close(head.expectations(-emb), -head.expectations(emb))

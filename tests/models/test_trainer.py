@@ -82,9 +82,21 @@ def test_trains_a_custom_network_to_high_accuracy() -> None:
         "train_loss",
         "val_loss",
         "val_accuracy",
+        "val_balanced_accuracy",
+        "val_predictions",
         "lr",
+        "grad_norm_trunk",
+        "grad_norm_head",
+        "angle_std",
+        "angle_min",
+        "angle_max",
+        "feature_std",
+        "feature_min",
+        "feature_max",
         "seconds",
     }
+    assert sum(result.history[0]["val_predictions"]) == result.n_val
+    assert result.history[0]["grad_norm_head"] is None  # TinyCNN has no head
     assert (result.n_train, result.n_val, result.n_extra) == (
         len(split_train_val(120, 0.15, blocks=4, gap=5)[0]),
         len(split_train_val(120, 0.15, blocks=4, gap=5)[1]),
@@ -201,3 +213,132 @@ def test_bad_extras_and_settings() -> None:
     with pytest.raises(InputError) as err:
         FrameSamples.sequence(frames, np.full(20, 3))
     assert str(err.value) == "labels: values must be 0 (left), 1 (straight) or 2 (right)"
+
+
+# ------------------------------------------ diagnostics, selection, restarts (issue 20)
+
+
+class OneClass(nn.Module):
+    """A TinyCNN whose logits carry a fixed, untrainable push to ``straight``: it predicts
+    one class whatever it learns (a degenerate start)."""
+
+    def __init__(self, push: float) -> None:
+        super().__init__()
+        self.cnn = tiny()
+        self.register_buffer("push", torch.tensor([0.0, push, 0.0]))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out: torch.Tensor = self.cnn(x) + self.push
+        return out
+
+
+def test_a_run_predicting_one_class_restarts_with_the_next_seed() -> None:
+    frames, labels = bar_frames(96, np.random.default_rng(5))
+    samples = FrameSamples.sequence(frames, labels)
+    built: list[int] = []
+
+    def rebuild(seed: int) -> nn.Module:
+        built.append(seed)
+        return OneClass(0.0)
+
+    trainer = Trainer(settings(epochs=2, restarts=2, seed=3), transform=scaled)
+    result = trainer.fit(OneClass(1e4), samples, rebuild=rebuild)
+    assert built == [4] and result.seed == 4
+    assert [(r["seed"], r["next_seed"]) for r in result.restarts] == [(3, 4)]
+    assert result.restarts[0]["val_predictions"] == [0, result.n_val, 0]
+    assert sum(1 for c in result.history[result.best_epoch - 1]["val_predictions"] if c) > 1
+    # no restarts asked for, or no way to rebuild: the collapsed run is kept as it is
+    for kw in ({"restarts": 0}, {"restarts": 2}):
+        rebuild_or_none = rebuild if kw["restarts"] == 0 else None
+        kept = Trainer(settings(epochs=1, seed=3, **kw), transform=scaled).fit(
+            OneClass(1e4), samples, rebuild=rebuild_or_none
+        )
+        assert kept.restarts == [] and kept.seed == 3
+        assert kept.history[0]["val_predictions"] == [0, kept.n_val, 0]
+
+
+class Scripted(nn.Module):
+    """Reads each frame's label from its first pixel. Epoch 1 answers 'straight' with a
+    margin of 5 (a low loss when most frames are straight, balanced accuracy 1/k); later
+    epochs answer right with a margin of 0.1 (a higher loss, balanced accuracy 1)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.w = nn.Parameter(torch.zeros(3))
+        self.epochs_started = 0
+
+    def train(self, mode: bool = True) -> Scripted:
+        self.epochs_started += int(mode)
+        return super().train(mode)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.training:
+            return self.w.expand(len(x), 3)
+        label = x[:, 0, 0, 0].round().long()
+        if self.epochs_started == 1:
+            return torch.tensor([0.0, 5.0, 0.0]).expand(len(x), 3)
+        return torch.nn.functional.one_hot(label, 3).float() * 0.1
+
+
+@pytest.mark.parametrize(("select", "kept"), [("loss", 1), ("balanced_accuracy", 2)])
+def test_the_kept_epoch_follows_the_selection(select: str, kept: int) -> None:
+    n = 200
+    labels = np.ones(n, dtype=np.int64)
+    labels[::10] = 0  # 10 % left, everywhere (so in every validation block)
+    frames = torch.zeros((n, 3, 2, 2), dtype=torch.uint8)
+    frames[:, 0, 0, 0] = torch.from_numpy(labels).to(torch.uint8)
+    s = settings(epochs=2, select=select, augment=False, label_smoothing=0.0)
+    result = Trainer(s).fit(Scripted(), FrameSamples.sequence(frames, labels))
+    first, second = result.history
+    assert first["val_loss"] < second["val_loss"]
+    assert first["val_balanced_accuracy"] == 0.5 and second["val_balanced_accuracy"] == 1.0
+    assert result.best_epoch == kept
+    with pytest.raises(ParameterError, match="select='accuracy' is invalid"):
+        Trainer(settings(select="accuracy")).fit(Scripted(), FrameSamples.sequence(frames, labels))
+
+
+def test_class_balanced_loss_weights_classes_by_their_training_counts() -> None:
+    from qdcnn.models.samples import class_weights
+
+    n = 120
+    labels = np.where(np.arange(n) % 4 == 0, 0, 1)  # 25 % left, 75 % straight
+    frames = torch.zeros((n, 3, 2, 2), dtype=torch.uint8)
+    samples = FrameSamples.sequence(frames, labels)
+
+    class Fixed(nn.Module):  # the same logits for every frame; lr tiny: they stay
+        def __init__(self) -> None:
+            super().__init__()
+            self.w = nn.Parameter(torch.tensor([0.3, -0.2, 0.1]))
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return self.w.expand(len(x), 3)
+
+    losses = {}
+    for weighting in ("balanced", None):
+        s = settings(epochs=1, lr=1e-9, augment=False, label_smoothing=0.0, class_weight=weighting)
+        losses[weighting] = Trainer(s).fit(Fixed(), samples).history[0]["train_loss"]
+    train_idx, _ = split_train_val(n, 0.15, blocks=4, gap=5)
+    y = labels[train_idx]
+    ce = -torch.log_softmax(torch.tensor([0.3, -0.2, 0.1]), 0).numpy()
+    w = class_weights(y)
+    assert w[0] == pytest.approx(len(y) / (2 * np.sum(y == 0)))
+    assert losses["balanced"] == pytest.approx(np.sum(w[y] * ce[y]) / np.sum(w[y]), rel=1e-5)
+    assert losses[None] == pytest.approx(np.mean(ce[y]), rel=1e-5)
+
+
+def test_history_reports_a_hybrid_heads_gradients_and_spreads() -> None:
+    from qdcnn.models.hybrid import HybridNet
+    from qdcnn.models.quantum_layers import QuantumHead
+
+    frames, labels = bar_frames(48, np.random.default_rng(1))
+    torch.manual_seed(0)
+    trunk = nn.Sequential(nn.Flatten(), nn.Linear(3 * 16 * 32, 5), nn.ELU())
+    net = HybridNet(None, trunk, QuantumHead(5, 2, 1))
+    result = Trainer(settings(epochs=1), transform=scaled).fit(
+        net, FrameSamples.sequence(frames, labels)
+    )
+    record = result.history[0]
+    assert record["grad_norm_head"] > 0 and record["grad_norm_trunk"] > 0
+    assert 0 < record["angle_std"] and -np.pi < record["angle_min"] <= record["angle_max"] < np.pi
+    assert -1 <= record["feature_min"] <= record["feature_max"] <= 1
+    assert record["feature_std"] > 0

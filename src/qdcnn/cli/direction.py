@@ -87,17 +87,45 @@ WeightsOpt = Annotated[
     Path | None, typer.Option(help="ImageNet weights for dnn-resnet50 (state_dict).")
 ]
 ForceOpt = Annotated[bool, typer.Option(help="Redo images already done.")]
+TransferOpt = Annotated[
+    bool,
+    typer.Option(
+        help="Hybrids: train the trunk with a linear head, then the head on the frozen trunk, "
+        "then fine-tune all at a tenth of the rate."
+    ),
+]
+FromOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--from",
+        help="Hybrids: start from this saved network's trunk (same architecture, input size "
+        "and context), then train the head and fine-tune.",
+    ),
+]
 
 
 def training_options(
-    epochs: int, weights: Path | None, threads: int | None, progress: bool, context: int = 1
+    epochs: int,
+    weights: Path | None,
+    threads: int | None,
+    progress: bool,
+    context: int = 1,
+    *,
+    transfer: bool = False,
+    from_model: Path | None = None,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
 
     if threads is not None and threads < 1:
         raise ParameterError("threads", threads, "a positive integer")
     return TrainingOptions(
-        epochs=epochs, weights=weights, threads=threads, progress=progress, context=context
+        epochs=epochs,
+        weights=weights,
+        threads=threads,
+        progress=progress,
+        context=context,
+        transfer=transfer,
+        from_model=from_model,
     )
 
 
@@ -124,6 +152,7 @@ def evaluate_cmd(
     threads: ThreadsOpt = None,
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
+    transfer: TransferOpt = False,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -157,7 +186,7 @@ def evaluate_cmd(
             folds,
             gap,
             inner_folds,
-            training_options(epochs, weights, threads, not as_json, context),
+            training_options(epochs, weights, threads, not as_json, context, transfer=transfer),
             use_cache=cache,
             scheduler=scheduler,
             train=tuple(train or ()),
@@ -319,6 +348,8 @@ def train_direction_cmd(
     shadow_removal: ShadowRemovalOpt = True,
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
+    transfer: TransferOpt = False,
+    from_model: FromOpt = None,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -347,7 +378,15 @@ def train_direction_cmd(
             config,
             inner_folds,
             gap,
-            training_options(epochs, weights, threads, not as_json, context),
+            training_options(
+                epochs,
+                weights,
+                threads,
+                not as_json,
+                context,
+                transfer=transfer,
+                from_model=from_model,
+            ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))
     except QdcnnError as exc:
@@ -360,6 +399,11 @@ def train_direction_cmd(
             f"{result.model.method} trained on {s['n']} frames of {' + '.join(data)} "
             f"(training accuracy {s['training_accuracy']:.3f}); written to {result.path}"
         )
+        for r in s.get("restarts", []):
+            out.print(
+                f"note: the run with seed {r['seed']} predicted one class on its validation "
+                f"frames ({r['val_predictions']}); restarted with seed {r['next_seed']}"
+            )
     raise typer.Exit(result.exit_code)
 
 

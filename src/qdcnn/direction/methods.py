@@ -65,6 +65,11 @@ class TrainingOptions:
         Frames stacked as one input (the frame and the ``context - 1`` before it).
     params : mapping
         Further estimator parameters (for studies).
+    transfer : bool
+        Train hybrid networks in stages (:mod:`qdcnn.models.transfer`).
+    from_model : path or None
+        A saved network of the same architecture whose trunk a hybrid starts from
+        (``train-direction --from``).
     """
 
     epochs: int = 25
@@ -73,6 +78,8 @@ class TrainingOptions:
     progress: bool = False
     context: int = 1
     params: Mapping[str, Any] = field(default_factory=dict)
+    transfer: bool = False
+    from_model: Path | None = None
 
     def __post_init__(self) -> None:
         from qdcnn._validation import check_int
@@ -95,6 +102,8 @@ def check_fit_settings(gap: int, inner_folds: int, training: TrainingOptions) ->
         check_int("inner_folds", inner_folds, 2, 100)
     if training.weights is not None:
         require_file(training.weights, "weights file")
+    if training.from_model is not None:
+        require_file(training.from_model, "--from model file")
 
 
 def check_inner_search(
@@ -307,10 +316,31 @@ def _build_vqc(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEs
     return estimator, grid
 
 
+#: How the hybrids, their twins and ablations train (issue 20): class-balanced loss, the
+#: epoch of the best validation balanced accuracy, and up to two restarts with the next
+#: seed when the validation predictions are all one class.
+HYBRID_RECIPE: Mapping[str, Any] = {
+    "class_weight": "balanced",
+    "select": "balanced_accuracy",
+    "restarts": 2,
+}
+#: Method kinds of the hybrid family (``transfer`` and ``--from`` apply to them).
+HYBRID_KINDS: tuple[str, ...] = ("hybrid", "hybrid-twin", "hybrid-ablation")
+
+
 def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> _Builder:
+    hybrid = network_params is not None
+
     def build(config: PipelineConfig, options: TrainingOptions) -> tuple[BaseEstimator, _Grid]:
         from qdcnn.models.training import CNNDirectionClassifier
 
+        staged: dict[str, Any] = {}
+        if hybrid:
+            from_model = None if options.from_model is None else str(options.from_model)
+            staged = {**HYBRID_RECIPE, "transfer": options.transfer, "trunk_from": from_model}
+        elif options.transfer or options.from_model is not None:
+            what = "--transfer" if options.transfer else "--from"
+            raise ParameterError(what, "set", f"unset: {arch} is not a hybrid network")
         estimator = CNNDirectionClassifier(
             arch,
             epochs=options.epochs,
@@ -320,7 +350,7 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
             num_threads=options.threads,
             context=options.context,
             network_params=None if network_params is None else dict(network_params),
-            **dict(options.params),
+            **{**staged, **dict(options.params)},
         )
         return estimator, {}
 
@@ -405,6 +435,18 @@ for _hybrid in HYBRID_NETWORKS:
             "count)",
         )
     )
+    for _name, _ablation in _hybrid.ablations:
+        register(
+            DirectionMethod(
+                _name,
+                "frames",
+                _cnn_builder(_hybrid.name, {"head": _ablation.head}),
+                "hybrid-ablation",
+                needs_torch=True,
+                quantum=_ablation.head != "linear",
+                summary=f"{_hybrid.summary}: ablation, {_ablation.summary}",
+            )
+        )
 register(
     DirectionMethod(
         "dnn-resnet50",

@@ -26,6 +26,8 @@ from qdcnn.direction.model_checks import check_estimator_params, check_fitted_at
 from qdcnn.direction.protocol import fit_with_search
 from qdcnn.errors import InputError, ParameterError, QdcnnError
 from qdcnn.persistence import (
+    DIRECTION_MODEL_KIND,
+    DIRECTION_MODEL_VERSION,
     estimator_state,
     load_model,
     restore_estimator_state,
@@ -38,8 +40,8 @@ __all__ = [
     "train_direction_model",
 ]
 
-KIND = "qdcnn-direction-model"
-FORMAT_VERSION = 2
+KIND = DIRECTION_MODEL_KIND
+FORMAT_VERSION = DIRECTION_MODEL_VERSION
 
 
 def default_config() -> PipelineConfig:
@@ -285,4 +287,7 @@ def train_direction_model(
         "training_accuracy": float(np.mean(predictions == y)),
         "chosen_hyperparameters": chosen,
     }
+    for key, attribute in (("history", "history_"), ("restarts", "restarts_"), ("seed", "seed_")):
+        if hasattr(fitted, attribute):  # CNNs and hybrids: per-epoch diagnostics
+            summary[key] = getattr(fitted, attribute)
     return DirectionModel(m.name, config, fitted, trained_on, summary)

@@ -201,8 +201,9 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
     """
     from qdcnn.quantum.templates import head_circuit
 
+    entangle = True
     if spec.model is not None:
-        weights, reupload = _trained_head(spec.model)
+        weights, reupload, entangle = _trained_head(spec.model)
         qubits, layers = weights.shape[1], weights.shape[0]
     else:
         if spec.qubits is None or spec.layers is None or spec.weights is None:
@@ -214,7 +215,7 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
         flat = angle_list(spec.weights, "weights", layers * qubits * 3)
         weights, reupload = np.reshape(flat, (layers, qubits, 3)), bool(spec.reupload)
     xs = [0.0] * qubits if spec.x is None else angle_list(spec.x, "x", qubits)
-    circuit = head_circuit([xs], weights, reupload=reupload)
+    circuit = head_circuit([xs], weights, reupload=reupload, entangle=entangle)
     params = {
         "x": xs,
         "weights": np.asarray(weights).ravel().tolist(),
@@ -225,7 +226,7 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
     return circuit, params
 
 
-def _trained_head(path: Path) -> tuple[Any, bool]:
+def _trained_head(path: Path) -> tuple[Any, bool, bool]:
     from qdcnn.direction.model import DirectionModel
 
     model = DirectionModel.load(path)
@@ -235,7 +236,8 @@ def _trained_head(path: Path) -> tuple[Any, bool]:
     reupload = getattr(head, "reupload", None)
     if weights is None or reupload is None:
         raise ParameterError("model", str(path), "a hybrid model with a quantum head (qdcnn-*)")
-    return weights.detach().double().cpu().numpy(), bool(reupload)
+    entangle = bool(getattr(head, "entangle", True))  # False: the -noent ablation
+    return weights.detach().double().cpu().numpy(), bool(reupload), entangle
 
 
 #: The circuit kinds, by name.

@@ -480,7 +480,8 @@ def paired_comparisons(
     """Balanced-accuracy differences on the same test frames, with paired intervals.
 
     With ``paired``, each method after the first against the first; always each hybrid
-    against its classical twin when both were evaluated. One group per test set.
+    against its classical twin and against each of its head ablations evaluated with it.
+    One group per test set.
     """
     from qdcnn.models.specs import hybrid_of
 
@@ -493,9 +494,11 @@ def paired_comparisons(
         pairs = [(r, group[0]) for r in group[1:]] if paired else []
         for r in group:
             h = hybrid_of(r.method)
-            twin = by_name.get(f"{r.method}-classical")
-            if h is not None and h.name == r.method and twin is not None:
-                pairs.append((r, twin))
+            if h is None or h.name != r.method:
+                continue
+            for other in (h.twin, *(name for name, _ in h.ablations)):
+                if other in by_name:
+                    pairs.append((r, by_name[other]))
         seen: set[tuple[str, str]] = set()
         for a, b in pairs:
             if (a.method, b.method) not in seen:

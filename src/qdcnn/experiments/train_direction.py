@@ -10,6 +10,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.methods import (
+    HYBRID_KINDS,
     TrainingOptions,
     check_fit_settings,
     check_inner_search,
@@ -47,8 +48,12 @@ class TrainDirectionSpec:
     def __post_init__(self) -> None:
         if not self.specs:
             raise ParameterError("data", "none", "one dataset spec or more")
-        get_method(self.method)
+        method = get_method(self.method)
         check_fit_settings(self.gap, self.inner_folds, self.training)
+        staged = self.training.transfer or self.training.from_model is not None
+        if staged and method.kind not in HYBRID_KINDS:
+            what = "--transfer" if self.training.transfer else "--from"
+            raise ParameterError(what, "set", f"unset: {method.name} is not a hybrid method")
 
 
 @dataclass
@@ -87,8 +92,11 @@ def train_direction(
     sets = [
         load_frameset(d, seed=cfg.seed, steering_unit=cfg.labels.steering_unit) for d in spec.specs
     ]
-    if method.estimator(spec.config, spec.training)[1]:  # a grid to search: before any work
+    estimator, grid = method.estimator(spec.config, spec.training)
+    if grid:  # a grid to search: before any work
         check_inner_search(sum(len(f) for f in sets), spec.inner_folds, spec.gap)
+    if spec.training.from_model is not None:  # its trunk must fit: before any work
+        estimator.read_trunk()
     parts = [_inputs(spec, frames, sets, report) for frames in sets]
     shapes = {np.shape(x)[1:] for x, _, _ in parts}
     if len(shapes) > 1:

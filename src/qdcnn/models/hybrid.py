@@ -17,7 +17,9 @@ that trains PilotNet trains them.
 
 ``head="classical"`` swaps the quantum head for
 :class:`~qdcnn.models.quantum_layers.RingMLPHead`, which has exactly as many
-trainable parameters.
+trainable parameters; ``head="product"``, ``"fixed"`` and ``"linear"`` build the
+ablations of :data:`~qdcnn.models.specs.HEAD_ABLATIONS`. ``dressed=False`` builds the
+original (undressed) heads, as files saved before the dressing hold them.
 """
 
 from __future__ import annotations
@@ -30,13 +32,13 @@ from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
 from qdcnn.models.pilotnet import PilotNet
 from qdcnn.models.quantum_layers import (
-    READOUT_GAIN,
+    LinearHead,
     QuantumHead,
     Quanvolution2d,
     RingMLPHead,
     UUConv2d,
 )
-from qdcnn.models.specs import HEADS, HYBRID_NETWORKS
+from qdcnn.models.specs import ALL_HEADS, HYBRID_NETWORKS
 from qdcnn.quantum.noise import NoiseSpec
 
 require("torch", "the hybrid quantum networks")
@@ -95,11 +97,15 @@ def _make_head(
     shots: int | None = None,
     noise: NoiseSpec | None = None,
     num_classes: int = 3,
-    readout_gain: float = READOUT_GAIN,
+    readout_gain: float | None = None,
+    dressed: bool = True,
 ) -> nn.Module:
-    """The quantum head, or its classical twin (which takes no shots and no noise)."""
-    head = check_choice("head", head, HEADS)
-    if head == "quantum":
+    """The head ``head`` names (:data:`~qdcnn.models.specs.ALL_HEADS`): the quantum head,
+    its classical twin, or an ablation (``product``: no entangling gates; ``fixed``: a
+    fixed random circuit; ``linear``: one linear layer). Only circuits take shots and noise.
+    """
+    head = check_choice("head", head, ALL_HEADS)
+    if head in ("quantum", "product", "fixed"):
         return QuantumHead(
             in_features,
             n_qubits,
@@ -109,11 +115,16 @@ def _make_head(
             noise,
             num_classes=num_classes,
             readout_gain=readout_gain,
+            dressed=dressed,
+            entangle=head != "product",
+            trainable_circuit=head != "fixed",
         )
     for name, value in (("shots", shots), ("noise", noise), ("reupload", reupload or None)):
         if value is not None:
-            raise ParameterError(name, value, "None with the classical head (quantum only)")
-    return RingMLPHead(in_features, n_qubits, n_layers, num_classes, readout_gain)
+            raise ParameterError(name, value, f"None with the {head} head (circuits only)")
+    if head == "linear":
+        return LinearHead(in_features, num_classes)
+    return RingMLPHead(in_features, n_qubits, n_layers, num_classes, readout_gain, dressed=dressed)
 
 
 class HybridNet(nn.Module):

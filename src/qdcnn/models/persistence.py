@@ -109,6 +109,34 @@ def read_network_file(
     return _load(path, MODEL_KIND, MODEL_FORMAT_VERSION)
 
 
+def read_saved_network(
+    path: str | os.PathLike[str],
+) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """Header ``meta`` and weight arrays of a CNN or hybrid network saved by qdcnn: a
+    :data:`MODEL_KIND` file, or a direction model (``train-direction``) holding one.
+
+    Raises
+    ------
+    InputError
+        Neither, or a direction model of a method that is not a CNN (one line).
+    """
+    from qdcnn.persistence import DIRECTION_MODEL_KIND, DIRECTION_MODEL_VERSION
+
+    try:
+        return read_network_file(path)
+    except InputError as first:
+        try:
+            header, arrays = load_model(path, DIRECTION_MODEL_KIND, {DIRECTION_MODEL_VERSION})
+        except InputError:
+            raise first from None
+    state = header.meta.get("state")
+    custom = state.get("custom") if isinstance(state, dict) else None
+    if not isinstance(custom, dict) or "architecture" not in custom:
+        method = header.meta.get("method")
+        raise InputError(path, f"the model's method {method!r} has no trained network")
+    return dict(custom), arrays
+
+
 def load_state_arrays(
     network: nn.Module, arrays: Mapping[str, NDArray[Any]], path: str | os.PathLike[str], name: str
 ) -> None:

@@ -23,7 +23,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn._optional import require
-from qdcnn._validation import check_float, check_int, check_optional_shots, check_shape, has_shape
+from qdcnn._validation import (
+    check_bool,
+    check_float,
+    check_int,
+    check_optional_shots,
+    check_shape,
+    has_shape,
+)
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
@@ -37,24 +44,95 @@ import torch  # noqa: E402
 import torch.nn.functional as F  # noqa: E402
 from torch import nn  # noqa: E402
 
-#: The heads' fixed factor on their bounded features before the read-out (QuantumHead).
+#: The legacy heads' fixed factor on their bounded features before the read-out
+#: (``dressed=False``); the dressed heads start their trainable output scale at
+#: :data:`OUTPUT_SCALE_INIT` instead (``docs/hybrid-collapse.md``).
 READOUT_GAIN = 10.0
+#: Initial value of the dressed heads' trainable per-feature output scale.
+OUTPUT_SCALE_INIT = 1.0
+#: Standard deviation of the dressed heads' near-identity initial layer angles.
+NEAR_IDENTITY_STD = 0.01
+#: The dressed quantum head encodes ``RY(pi / 2 + x_i)``: from ``|0>`` that is ``|+>`` then
+#: ``RY(x_i)`` (the dressed circuit's Hadamard layer), so ``<Z_i> = -sin(x_i)`` near the
+#: identity, odd in ``x_i``; ``RY(x_i)`` alone gives ``cos(x_i)``, which loses the sign of
+#: the projection and is 0 wherever it saturates at ``+-pi / 2`` (docs/hybrid-collapse.md).
+ENCODING_OFFSET = math.pi / 2
 
 
-class QuantumHead(nn.Module):
+class _DressedHead(nn.Module):
+    """What the quantum head and its twin share: the encoding and the read-out.
+
+    ``dressed=True`` (Mari et al.'s dressed quantum circuit): angles
+    ``x_i = pi sigmoid(s_i) tanh((W e + b)_i)``, a bounded trainable input scale starting at
+    ``pi / 2``; the features ``f_i`` (``<Z_i>`` or the twin's) become ``g_i f_i + c_i`` with a
+    trainable output scale ``g`` (starting at ``readout_gain``) and bias ``c`` per feature,
+    then a linear read-out. ``dressed=False`` is the original head: ``x = pi tanh(W e + b)``
+    and a fixed ``readout_gain`` on the features (files saved before the dressing load as it).
+    """
+
+    def __init__(self, in_features: int, n_qubits: int, readout_gain: float, dressed: bool):
+        super().__init__()
+        in_features = check_int("in_features", in_features, 1)
+        self.readout_gain = check_float("readout_gain", readout_gain, 0.0, 1e3, open_lo=True)
+        self.n_qubits = check_int("n_qubits", n_qubits, 1, MAX_QUBITS)
+        self.dressed = check_bool("dressed", dressed)
+        self.projection = nn.Linear(in_features, self.n_qubits)
+
+    def _add_readout(self, num_classes: int) -> None:
+        """The read-out (after the subclass's own parameters: legacy inits stay as they were)."""
+        n = self.n_qubits
+        self.readout = nn.Linear(n, check_int("num_classes", num_classes, 1))
+        if self.dressed:
+            self.input_scale = nn.Parameter(torch.zeros(n))
+            self.output_scale = nn.Parameter(torch.full((n,), float(self.readout_gain)))
+            self.output_bias = nn.Parameter(torch.zeros(n))
+
+    def angles(self, embedding: torch.Tensor) -> torch.Tensor:
+        """Encoded angles ``(B, n_qubits)``, in ``(-pi, pi)`` (see the class docstring)."""
+        squashed = torch.tanh(self.projection(embedding))
+        if not self.dressed:
+            return math.pi * squashed
+        return math.pi * torch.sigmoid(self.input_scale).to(squashed.dtype) * squashed
+
+    def logits(self, features: torch.Tensor) -> torch.Tensor:
+        """Class logits of the head's features ``(B, n_qubits)``."""
+        if not self.dressed:
+            out: torch.Tensor = self.readout(self.readout_gain * features)
+            return out
+        scale = self.output_scale.to(features.dtype)
+        dressed: torch.Tensor = self.readout(scale * features + self.output_bias.to(features.dtype))
+        return dressed
+
+    def features(self, embedding: torch.Tensor) -> torch.Tensor:
+        """The features the read-out sees before scaling, ``(B, n_qubits)``."""
+        raise NotImplementedError
+
+    def forward(self, embedding: torch.Tensor) -> torch.Tensor:
+        """Logits ``(B, num_classes)`` for embeddings ``(B, in_features)``."""
+        return self.logits(self.features(embedding))
+
+    def diagnostics(self, embedding: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Encoded ``angles`` and read-out ``features`` (``<Z_i>``) of ``embedding``."""
+        return {"angles": self.angles(embedding), "features": self.features(embedding)}
+
+
+class QuantumHead(_DressedHead):
     """Embedding -> angles -> variational circuit -> ``<Z_i>`` -> class logits.
 
     The projection is a linear map of the embedding to ``n_qubits`` angles squashed
-    to ``(-pi, pi)``: ``x = pi * tanh(W e + b)``, so every angle stays on one turn of
-    the circle whatever the embedding's scale. Qubit ``i`` gets ``RY(x_i)``; then
-    ``n_layers`` StronglyEntanglingLayers (``Rot(phi, theta, omega)`` on each qubit,
-    then ``CX(i, (i + r) mod n)`` with ``r = (l mod (n - 1)) + 1``; no CNOTs on one
-    qubit), optionally re-uploading ``RY(x_i)`` before every layer [2]_. The read-out
-    ``<Z_i>`` of every qubit, times a fixed ``readout_gain``, goes through a linear map
-    to the classes. Without
-    re-uploading the circuit is exactly PennyLane's ``AngleEmbedding(rotation="Y")``
-    followed by ``StronglyEntanglingLayers``; ``weights`` has PennyLane's shape
-    ``(n_layers, n_qubits, 3)`` and its initialisation (uniform in ``[0, 2 pi)``).
+    to ``(-pi, pi)`` (:class:`_DressedHead`: a trainable bounded input scale when
+    ``dressed``). Qubit ``i`` gets ``RY(x_i)``; then ``n_layers`` StronglyEntanglingLayers
+    (``Rot(phi, theta, omega)`` on each qubit, then ``CX(i, (i + r) mod n)`` with
+    ``r = (l mod (n - 1)) + 1``; no CNOTs on one qubit), optionally re-uploading
+    ``RY(x_i)`` before every layer [2]_. The read-out ``<Z_i>`` of every qubit goes,
+    scaled (a trainable scale and bias per qubit when ``dressed``, else the fixed
+    ``readout_gain``), through a linear map to the classes. Without re-uploading the
+    circuit is exactly PennyLane's ``AngleEmbedding(rotation="Y")`` followed by
+    ``StronglyEntanglingLayers``; ``weights`` has PennyLane's shape ``(n_layers, n_qubits, 3)``.
+    Dressed, the weights start near the identity (normal, standard deviation
+    :data:`NEAR_IDENTITY_STD`, from torch's seeded generator) and qubit ``i`` gets
+    ``RY(pi / 2 + x_i)`` (:data:`ENCODING_OFFSET`); undressed, the weights are uniform in
+    ``[0, 2 pi)`` (PennyLane's initialisation) and the encoding is ``RY(x_i)``.
 
     Parameters
     ----------
@@ -77,8 +155,19 @@ class QuantumHead(nn.Module):
     shot_seed : int
         Seed of the shot sampler.
     readout_gain : float
-        Fixed factor on ``<Z_i>`` before the linear read-out (:class:`RingMLPHead` takes
-        the same gain); why 10 and the experiment behind it: ``docs/readout-gain.md``.
+        Dressed: the initial output scale (:data:`OUTPUT_SCALE_INIT`). Undressed: the
+        fixed factor on ``<Z_i>`` (:data:`READOUT_GAIN`, ``docs/readout-gain.md``).
+    dressed : bool
+        The dressed head (trainable input scale, output scale and bias, near-identity
+        start), or the original one.
+    entangle : bool
+        ``False``: no CNOTs, a product state (the ``-noent`` ablation).
+    trainable_circuit : bool
+        ``False``: the layer angles are a fixed random draw (uniform in ``[0, 2 pi)``,
+        seeded by ``circuit_seed``) kept as a buffer; only the encoding and the
+        read-out train (the ``-fixed`` ablation).
+    circuit_seed : int
+        Seed of the fixed circuit's angles.
     """
 
     def __init__(
@@ -91,24 +180,42 @@ class QuantumHead(nn.Module):
         noise: NoiseSpec | None = None,
         num_classes: int = 3,
         shot_seed: int = 0,
-        readout_gain: float = READOUT_GAIN,
+        readout_gain: float | None = None,
+        *,
+        dressed: bool = True,
+        entangle: bool = True,
+        trainable_circuit: bool = True,
+        circuit_seed: int = 0,
     ) -> None:
-        super().__init__()
-        in_features = check_int("in_features", in_features, 1)
-        self.readout_gain = check_float("readout_gain", readout_gain, 0.0, 1e3, open_lo=True)
-        self.n_qubits = check_int("n_qubits", n_qubits, 1, MAX_QUBITS)
+        gain = _default_gain(readout_gain, dressed)
+        super().__init__(in_features, n_qubits, gain, dressed)
         self.n_layers = check_int("n_layers", n_layers, 1)
-        self.reupload = bool(reupload)
+        self.reupload = check_bool("reupload", reupload)
+        self.entangle = check_bool("entangle", entangle)
         self.shots = check_optional_shots(shots)
         self.noise = noise
-        self.projection = nn.Linear(in_features, self.n_qubits)
-        self.weights = nn.Parameter(torch.rand(self.n_layers, self.n_qubits, 3) * (2 * math.pi))
-        self.readout = nn.Linear(self.n_qubits, check_int("num_classes", num_classes, 1))
-        self.circuit = TorchCircuit(
-            head_template(self.n_qubits, self.n_layers, reupload=self.reupload), None
-        )
+        shape = (self.n_layers, self.n_qubits, 3)
+        if not check_bool("trainable_circuit", trainable_circuit):
+            gen = torch.Generator().manual_seed(check_int("circuit_seed", circuit_seed, 0))
+            self.register_buffer("weights", torch.rand(shape, generator=gen) * (2 * math.pi))
+        elif self.dressed:
+            self.weights = nn.Parameter(torch.randn(shape) * NEAR_IDENTITY_STD)
+        else:
+            self.weights = nn.Parameter(torch.rand(shape) * (2 * math.pi))
+        self._add_readout(num_classes)
         self._shot_rng = np.random.default_rng(shot_seed)
         self.set_noise(noise)
+
+    def angles(self, embedding: torch.Tensor) -> torch.Tensor:
+        """The ``RY`` angles ``(B, n_qubits)``: dressed, :data:`ENCODING_OFFSET` plus the
+        bounded encoding (in ``(-pi / 2, 3 pi / 2)``); undressed, ``pi tanh(W e + b)``."""
+        x = super().angles(embedding)
+        return x + ENCODING_OFFSET if self.dressed else x
+
+    def _template(self) -> Any:
+        return head_template(
+            self.n_qubits, self.n_layers, reupload=self.reupload, entangle=self.entangle
+        )
 
     def set_noise(self, noise: NoiseSpec | None) -> None:
         """Run the circuit under ``noise`` from now on (``None``: noise-free).
@@ -121,12 +228,7 @@ class QuantumHead(nn.Module):
         """
         self.noise = None if noise is None or noise.is_ideal else noise
         self._numpy_noise = getattr(self.noise, "device", None) is not None
-        template = head_template(self.n_qubits, self.n_layers, reupload=self.reupload)
-        self.circuit = TorchCircuit(template, None if self._numpy_noise else self.noise)
-
-    def angles(self, embedding: torch.Tensor) -> torch.Tensor:
-        """Encoded angles ``pi * tanh(W e + b)``, shape ``(B, n_qubits)``."""
-        return math.pi * torch.tanh(self.projection(embedding))
+        self.circuit = TorchCircuit(self._template(), None if self._numpy_noise else self.noise)
 
     def expectations(self, embedding: torch.Tensor) -> torch.Tensor:
         """``<Z_i>`` per qubit, ``(B, n_qubits)``: exact, or shot-estimated in eval mode."""
@@ -136,6 +238,8 @@ class QuantumHead(nn.Module):
         if self._numpy_noise:
             return self._device_expectations(x, shots)
         return self.circuit.expectations(x, w, shots=shots, rng=self._shot_rng)
+
+    features = expectations
 
     def _device_expectations(self, x: torch.Tensor, shots: int | None) -> torch.Tensor:
         from qdcnn.quantum.execute import run_probabilities
@@ -151,32 +255,37 @@ class QuantumHead(nn.Module):
             x.detach().double().cpu().numpy(),
             self.weights.detach().double().cpu().numpy(),
             reupload=self.reupload,
+            entangle=self.entangle,
         )
         probs = run_probabilities(circuits, shots=shots, noise=self.noise, rng=self._shot_rng)
         return torch.as_tensor(z_expectations(probs), dtype=x.dtype, device=x.device)
-
-    def forward(self, embedding: torch.Tensor) -> torch.Tensor:
-        """Logits ``(B, num_classes)`` for embeddings ``(B, in_features)``."""
-        out: torch.Tensor = self.readout(self.readout_gain * self.expectations(embedding))
-        return out
 
     def circuits(self, embedding: torch.Tensor) -> CircuitBatch:
         """The circuits this head runs for ``embedding``, for drawing and export."""
         with torch.no_grad():
             x = self.angles(embedding).double().cpu().numpy()
         w = self.weights.detach().double().cpu().numpy()
-        return head_circuit(x, w, reupload=self.reupload)
+        return head_circuit(x, w, reupload=self.reupload, entangle=self.entangle)
 
 
-class RingMLPHead(nn.Module):
+def _default_gain(readout_gain: float | None, dressed: bool) -> float:
+    """The initial output scale (dressed) or the fixed gain (undressed) when none is given."""
+    if readout_gain is not None:
+        return readout_gain
+    return OUTPUT_SCALE_INIT if dressed else READOUT_GAIN
+
+
+class RingMLPHead(_DressedHead):
     """The classical twin of :class:`QuantumHead`, with the same number of parameters.
 
-    The same projection ``pi * tanh(W e + b)`` to ``n_qubits`` features and the same
-    linear read-out; in place of the circuit, ``n_layers`` layers with the circuit's
-    three parameters per qubit and its ring connectivity:
+    The same encoding to ``n_qubits`` features and the same read-out (both dressed or
+    both not: :class:`_DressedHead`); in place of the circuit, ``n_layers`` layers with the
+    circuit's three parameters per qubit and its ring connectivity:
     ``y_i <- tanh(a_i y_i + c_i y_{(i + r) mod n} + b_i)`` with the layer's CNOT range
-    ``r``; and the same ``readout_gain`` on the features before the read-out. The heads
-    therefore differ only in the quantum circuit.
+    ``r``. Dressed, the layers start near the identity like the circuit (``a = 1``,
+    ``c = b = 0`` plus normal noise of :data:`NEAR_IDENTITY_STD`); undressed, ``a, c, b``
+    are normal with standard deviation 0.5. The heads therefore differ only in the
+    quantum circuit.
     """
 
     def __init__(
@@ -185,28 +294,54 @@ class RingMLPHead(nn.Module):
         n_qubits: int = 4,
         n_layers: int = 2,
         num_classes: int = 3,
-        readout_gain: float = READOUT_GAIN,
+        readout_gain: float | None = None,
+        *,
+        dressed: bool = True,
     ) -> None:
-        super().__init__()
-        self.readout_gain = check_float("readout_gain", readout_gain, 0.0, 1e3, open_lo=True)
         from qdcnn.quantum.templates import entangler_ranges
 
-        self.n_qubits = check_int("n_qubits", n_qubits, 1, MAX_QUBITS)
+        super().__init__(in_features, n_qubits, _default_gain(readout_gain, dressed), dressed)
         self.n_layers = check_int("n_layers", n_layers, 1)
-        self.projection = nn.Linear(check_int("in_features", in_features, 1), self.n_qubits)
+        shape = (self.n_layers, self.n_qubits, 3)
         # a, c, b per layer and qubit (the circuit has phi, theta, omega)
-        self.layers = nn.Parameter(torch.randn(self.n_layers, self.n_qubits, 3) * 0.5)
+        if self.dressed:
+            start = torch.randn(shape) * NEAR_IDENTITY_STD
+            start[..., 0] += 1.0
+            self.layers = nn.Parameter(start)
+        else:
+            self.layers = nn.Parameter(torch.randn(shape) * 0.5)
         self.ranges = entangler_ranges(self.n_qubits, self.n_layers)
-        self.readout = nn.Linear(self.n_qubits, check_int("num_classes", num_classes, 1))
+        self._add_readout(num_classes)
 
-    def forward(self, embedding: torch.Tensor) -> torch.Tensor:
-        """Logits ``(B, num_classes)`` for embeddings ``(B, in_features)``."""
-        y = math.pi * torch.tanh(self.projection(embedding))
+    def features(self, embedding: torch.Tensor) -> torch.Tensor:
+        """The ring layers' output ``(B, n_qubits)``, in ``(-1, 1)``."""
+        y = self.angles(embedding)
         for layer, r in zip(self.layers.unbind(0), self.ranges, strict=True):
             a, c, b = layer.unbind(-1)
             y = torch.tanh(a * y + c * torch.roll(y, -r, dims=1) + b)
-        out: torch.Tensor = self.readout(self.readout_gain * y)
+        return y
+
+
+class LinearHead(nn.Module):
+    """The ``-linear`` ablation: one linear map of the embedding to the class logits.
+
+    With the PilotNet trunk this is PilotNet itself (its last layer).
+    """
+
+    def __init__(self, in_features: int, num_classes: int = 3) -> None:
+        super().__init__()
+        self.readout = nn.Linear(
+            check_int("in_features", in_features, 1), check_int("num_classes", num_classes, 1)
+        )
+
+    def forward(self, embedding: torch.Tensor) -> torch.Tensor:
+        """Logits ``(B, num_classes)``."""
+        out: torch.Tensor = self.readout(embedding)
         return out
+
+    def diagnostics(self, embedding: torch.Tensor) -> dict[str, torch.Tensor]:
+        """No angles nor bounded features: nothing to report."""
+        return {}
 
 
 def _shot_fidelity(scores: torch.Tensor, shots: int, rng: np.random.Generator) -> torch.Tensor:

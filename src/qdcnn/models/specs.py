@@ -53,6 +53,40 @@ _TWIN_SUFFIX = "-classical"
 
 
 @dataclass(frozen=True)
+class HeadAblation:
+    """A head that removes part of the quantum head, trained like it on the same trunk.
+
+    Attributes
+    ----------
+    suffix : str
+        The method is the hybrid's name, ``-`` and this (``qdcnn-head-noent``).
+    head : str
+        The value of the network's ``head`` parameter that builds it.
+    summary : str
+        What it removes, for listings and reports.
+    """
+
+    suffix: str
+    head: str
+    summary: str
+
+
+#: The ablations of a quantum head (the field's check that a quantum layer adds anything:
+#: Bowles, Ahmed and Schuld 2024).
+HEAD_ABLATIONS: tuple[HeadAblation, ...] = (
+    HeadAblation("noent", "product", "its quantum head without entangling gates (a product state)"),
+    HeadAblation(
+        "fixed",
+        "fixed",
+        "its quantum head as a fixed random circuit (only the encoding and read-out train)",
+    ),
+    HeadAblation("linear", "linear", "a linear head on the trunk's embedding (no circuit)"),
+)
+#: Every head a hybrid network can be built with.
+ALL_HEADS: tuple[str, ...] = HEADS + tuple(a.head for a in HEAD_ABLATIONS)
+
+
+@dataclass(frozen=True)
 class HybridNetwork:
     """One hybrid QDCNN network: its name, its builder and what it is.
 
@@ -71,23 +105,36 @@ class HybridNetwork:
         One line for listings and reports.
     min_batch_size : int
         Smallest training batch (2 for networks with BatchNorm).
+    ablated : bool
+        Also registered with each head of :data:`HEAD_ABLATIONS` (:attr:`ablations`).
     """
 
     name: str
     builder: str
     summary: str
     min_batch_size: int = 1
+    ablated: bool = False
 
     @property
     def twin(self) -> str:
         """The name of its classical twin."""
         return self.name + _TWIN_SUFFIX
 
+    @property
+    def ablations(self) -> tuple[tuple[str, HeadAblation], ...]:
+        """``(method name, ablation)`` of each of its ablations (none unless :attr:`ablated`)."""
+        if not self.ablated:
+            return ()
+        return tuple((f"{self.name}-{a.suffix}", a) for a in HEAD_ABLATIONS)
+
 
 #: The hybrid QDCNN networks (quantum layers inside a PilotNet-style CNN, issue 11).
 HYBRID_NETWORKS: tuple[HybridNetwork, ...] = (
     HybridNetwork(
-        "qdcnn-head", "qdcnn_head", "PilotNet trunk, then a 4-qubit variational quantum head"
+        "qdcnn-head",
+        "qdcnn_head",
+        "PilotNet trunk, then a 4-qubit variational quantum head",
+        ablated=True,
     ),
     HybridNetwork(
         "qdcnn-uuconv",
@@ -111,5 +158,9 @@ def hybrid_of(name: str) -> HybridNetwork | None:
 
 
 def network_label(arch: str, head: object = None) -> str:
-    """The name a network trained with ``head`` goes by: a classical twin says so."""
-    return arch + _TWIN_SUFFIX if head == "classical" else arch
+    """The name a network trained with ``head`` goes by: a classical twin or an ablation
+    says so."""
+    if head == "classical":
+        return arch + _TWIN_SUFFIX
+    ablation = next((a for a in HEAD_ABLATIONS if a.head == head), None)
+    return arch if ablation is None else f"{arch}-{ablation.suffix}"

@@ -65,6 +65,11 @@ StepCallback = Callable[[int, int], None]
 #: ``on_epoch(record, epochs)`` after every epoch, ``record`` as in :attr:`TrainResult.history`.
 EpochCallback = Callable[[Mapping[str, Any], int], None]
 _DEVICES = "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
+#: How the kept epoch is chosen: the lowest validation loss, or the highest validation
+#: balanced accuracy (ties: the lower loss).
+SELECTIONS: tuple[str, str] = ("loss", "balanced_accuracy")
+#: ``rebuild(seed)``: a freshly initialised network for a restart with ``seed``.
+Rebuild = Callable[[int], nn.Module]
 
 
 def default_threads() -> int:
@@ -151,6 +156,8 @@ class TrainSettings:
     class_weight: Literal["balanced"] | None = None
     label_smoothing: float = 0.1
     lr_schedule: Literal["constant", "cosine"] = "cosine"
+    select: Literal["loss", "balanced_accuracy"] = "loss"
+    restarts: int = 0
     seed: int = 0
     device: str = "cpu"
     num_threads: int | None = None
@@ -188,6 +195,8 @@ class TrainSettings:
                 "label_smoothing", self.label_smoothing, 0.0, 0.5, open_hi=True
             ),
             lr_schedule=check_choice("lr_schedule", self.lr_schedule, ("constant", "cosine")),  # type: ignore[arg-type]
+            select=check_choice("select", self.select, SELECTIONS),  # type: ignore[arg-type]
+            restarts=check_int("restarts", self.restarts, 0, 100),
             seed=check_seed("seed", self.seed),
         )
 
@@ -253,12 +262,25 @@ class TrainResult:
     network : nn.Module
         The trained network with the kept epoch's weights, in eval mode.
     history : list of dict
-        Per epoch: ``epoch``, ``train_loss``, ``val_loss``, ``val_accuracy``
-        (``None`` without validation), ``lr`` (at the epoch's end), ``seconds``.
+        Per epoch: ``epoch``, ``train_loss``, ``val_loss``, ``val_accuracy``,
+        ``val_balanced_accuracy`` and ``val_predictions`` (how many validation samples
+        were given each class; all ``None`` without validation), ``lr`` (at the epoch's
+        end), ``grad_norm_trunk`` and ``grad_norm_head`` (the mean over the epoch's steps
+        of the gradient's L2 norm over the network's ``head`` and over everything else;
+        ``grad_norm_head`` is ``None`` for a network without a ``head``), the spread
+        of the head's encoded angles and of its features (``<Z_i>``) on the validation
+        samples: ``angle_std``, ``angle_min``, ``angle_max``, ``feature_std``,
+        ``feature_min``, ``feature_max`` (the std is the mean over qubits of the std over
+        samples; ``None`` for heads without them), and ``seconds``.
     best_epoch : int
         The epoch whose weights were kept (1-based).
     n_train, n_val, n_extra : int
         Training and validation samples, and extra samples that trained.
+    seed : int
+        The seed of the run kept (another than the settings' after a restart).
+    restarts : list of dict
+        The runs given up because their validation predictions were all one class:
+        ``seed``, ``best_epoch``, ``val_predictions``, ``next_seed``.
     """
 
     network: nn.Module
@@ -267,6 +289,8 @@ class TrainResult:
     n_train: int = 0
     n_val: int = 0
     n_extra: int = 0
+    seed: int = 0
+    restarts: list[dict[str, Any]] = field(default_factory=list)
 
 
 def _batches(order: NDArray[np.int64], batch_size: int) -> list[NDArray[np.int64]]:
@@ -341,6 +365,7 @@ class Trainer:
         *,
         extra: FrameSamples | None = None,
         extra_of: ArrayLike | None = None,
+        rebuild: Rebuild | None = None,
     ) -> TrainResult:
         """Train ``network`` in place on ``samples`` (in recording order).
 
@@ -356,6 +381,13 @@ class Trainer:
             validation frame shows reaches training.
         extra_of : (E,) int array or None
             The sample of ``samples`` each extra sample accompanies.
+        rebuild : callable or None
+            ``rebuild(seed)`` gives a fresh network: with ``settings.restarts``, a run
+            whose validation predictions (at the kept epoch) are all one class while
+            the validation block holds two classes or more starts again from
+            ``rebuild(seed + k)`` with seed ``seed + k`` (``k = 1, 2, ...``), up to
+            ``restarts`` times (:attr:`TrainResult.restarts` says so). Without it
+            nothing restarts.
 
         Returns
         -------
@@ -368,9 +400,37 @@ class Trainer:
         )
         extra_rows = _eligible_extra(extra, extra_of, train_idx, len(samples))
         threads = s.num_threads if s.num_threads is not None else default_threads()
-        with torch_session(threads, s.seed, device):
-            loop = _Loop(self, s, place(network, device), device, samples, extra)
-            return loop.run(train_idx, val_idx, extra_rows)
+        val_classes = len(np.unique(samples.labels[torch.from_numpy(val_idx)].numpy()))
+        restarts: list[dict[str, Any]] = []
+        attempts = 1 + (s.restarts if rebuild is not None else 0)
+        for attempt in range(attempts):
+            run = replace(s, seed=(s.seed + attempt) % 2**32)
+            if attempt:
+                assert rebuild is not None
+                network = rebuild(run.seed)
+            with torch_session(threads, run.seed, device):
+                loop = _Loop(self, run, place(network, device), device, samples, extra)
+                result = loop.run(train_idx, val_idx, extra_rows)
+            result.seed, result.restarts = run.seed, restarts
+            if attempt + 1 == attempts or not _collapsed(result, val_classes):
+                return result
+            restarts.append(
+                {
+                    "seed": run.seed,
+                    "best_epoch": result.best_epoch,
+                    "val_predictions": result.history[result.best_epoch - 1]["val_predictions"],
+                    "next_seed": run.seed + 1,
+                }
+            )
+        raise AssertionError("unreachable: the last attempt returns")
+
+
+def _collapsed(result: TrainResult, val_classes: int) -> bool:
+    """All validation predictions of the kept epoch in one class, when two or more occur."""
+    if val_classes < 2 or not result.best_epoch:
+        return False
+    counts = result.history[result.best_epoch - 1].get("val_predictions")
+    return counts is not None and sum(1 for c in counts if c) == 1
 
 
 def _eligible_extra(
@@ -452,12 +512,13 @@ class _Loop:
             else None
         )
         history: list[dict[str, Any]] = []
-        best_score, best_epoch, best_state = math.inf, 0, None
+        best_score: tuple[float, float] = (math.inf, math.inf)
+        best_epoch, best_state = 0, None
         self.step = 0
         for epoch in range(1, s.epochs + 1):
             record = self.epoch(epoch, pool, val_idx)
             history.append(record)
-            score = record["val_loss"] if len(val_idx) else -epoch  # no validation: the last
+            score = self.score(record, epoch, bool(len(val_idx)))
             improved = score < best_score
             if improved:
                 best_score, best_epoch = score, epoch
@@ -475,6 +536,14 @@ class _Loop:
             self.net, history, best_epoch, len(train_idx), len(val_idx), len(extra_rows)
         )
 
+    def score(self, record: Mapping[str, Any], epoch: int, validated: bool) -> tuple[float, float]:
+        """An epoch's rank (lower is better): without validation the last epoch wins."""
+        if not validated:
+            return (-float(epoch), 0.0)
+        if self.s.select == "balanced_accuracy":
+            return (-float(record["val_balanced_accuracy"]), float(record["val_loss"]))
+        return (float(record["val_loss"]), 0.0)
+
     def _extra_labels(self, rows: NDArray[np.int64]) -> torch.Tensor:
         if self.extra is None or not len(rows):
             return torch.zeros(0, dtype=torch.int64)
@@ -488,24 +557,35 @@ class _Loop:
         self.net.train()
         order = pool[torch.randperm(len(pool), generator=self.shuffle_gen).numpy()]
         loss_sum, weight_sum = 0.0, 0.0
+        norms: list[tuple[float, float | None]] = []
         for rows in _batches(order, s.batch_size):
-            loss, w = self.train_step(rows)
+            loss, w, norm = self.train_step(rows)
             loss_sum += loss * w
             weight_sum += w
+            norms.append(norm)
+        head_norms = [h for _, h in norms if h is not None]
         record: dict[str, Any] = {
             "epoch": epoch,
             "train_loss": loss_sum / (weight_sum or 1.0),
             "val_loss": None,
             "val_accuracy": None,
+            "val_balanced_accuracy": None,
+            "val_predictions": None,
             "lr": self.optimiser.param_groups[0]["lr"],
+            "grad_norm_trunk": float(np.mean([t for t, _ in norms])),
+            "grad_norm_head": float(np.mean(head_norms)) if head_norms else None,
+            **dict.fromkeys(_SPREAD_KEYS),
         }
         if len(val_idx):
-            record["val_loss"], record["val_accuracy"] = self.evaluate(val_idx)
+            record.update(self.evaluate(val_idx))
         record["seconds"] = time.perf_counter() - start
         return record
 
-    def train_step(self, rows: NDArray[np.int64]) -> tuple[float, float]:
-        """One optimisation step; the batch's loss and its summed class weight."""
+    def train_step(
+        self, rows: NDArray[np.int64]
+    ) -> tuple[float, float, tuple[float, float | None]]:
+        """One optimisation step; the batch's loss, its summed class weight and the
+        gradient norms of the trunk and of the head."""
         from qdcnn.models.augment import augment_batch
 
         xb, yb = self.batch(rows)
@@ -520,19 +600,21 @@ class _Loop:
         )
         self.optimiser.zero_grad(set_to_none=True)
         loss.backward()
+        norm = _gradient_norms(self.net)
         self.optimiser.step()
         if self.scheduler is not None:
             self.scheduler.step()
         self.step += 1
         if self.t.on_step is not None:
             self.t.on_step(self.step, self.total_steps)
-        return loss.item(), float(self.weight[yb].sum())
+        return loss.item(), float(self.weight[yb].sum()), norm
 
-    def evaluate(self, idx: NDArray[np.int64]) -> tuple[float, float]:
-        """Validation loss (weighted mean, as in training) and accuracy of samples ``idx``."""
+    def evaluate(self, idx: NDArray[np.int64]) -> dict[str, Any]:
+        """Validation loss (weighted mean, as in training), accuracy, balanced accuracy,
+        predicted-class counts and the head's spreads on samples ``idx``."""
         self.net.eval()
-        loss_sum, correct = 0.0, 0
-        with torch.inference_mode():
+        loss_sum, predicted = 0.0, []
+        with torch.inference_mode(), _HeadInputs(self.net) as embeddings:
             for chunk in _batches(idx, max(self.s.batch_size, 64)):
                 xb, yb = self.batch(chunk)
                 xb, yb = xb.to(self.device), yb.to(self.device)
@@ -546,9 +628,18 @@ class _Loop:
                         label_smoothing=self.s.label_smoothing,
                     )
                 )
-                correct += int((logits.argmax(1) == yb).sum())
-        denominator = float(self.weight_cpu[self.samples.labels[torch.from_numpy(idx)]].sum())
-        return loss_sum / (denominator or 1.0), correct / len(idx)
+                predicted.append(logits.argmax(1).cpu())
+            spreads = embeddings.spreads()
+        y = self.samples.labels[torch.from_numpy(idx)]
+        pred = torch.cat(predicted)
+        denominator = float(self.weight_cpu[y].sum())
+        return {
+            "val_loss": loss_sum / (denominator or 1.0),
+            "val_accuracy": float((pred == y).float().mean()),
+            "val_balanced_accuracy": balanced_accuracy(y.numpy(), pred.numpy()),
+            "val_predictions": np.bincount(pred.numpy(), minlength=N_CLASSES).tolist(),
+            **spreads,
+        }
 
     def write_checkpoints(
         self, folder: Path, history: list[dict[str, Any]], best_epoch: int, improved: bool
@@ -561,6 +652,72 @@ class _Loop:
             save_network(folder / "best.safetensors", self.net, meta)
         last = {**meta, "epoch": len(history)}
         save_checkpoint(folder / "last.safetensors", self.net, self.optimiser, last, self.scheduler)
+
+
+_SPREAD_KEYS = ("angle_std", "angle_min", "angle_max", "feature_std", "feature_min", "feature_max")
+
+
+def balanced_accuracy(labels: NDArray[np.int64], predicted: NDArray[np.int64]) -> float:
+    """The mean over the classes present in ``labels`` of their recall."""
+    classes = np.unique(labels)
+    return float(np.mean([np.mean(predicted[labels == c] == c) for c in classes]))
+
+
+def _head_of(network: nn.Module) -> nn.Module | None:
+    head = getattr(network, "head", None)
+    return head if isinstance(head, nn.Module) else None
+
+
+def _gradient_norms(network: nn.Module) -> tuple[float, float | None]:
+    """L2 norms of the gradient over everything but the ``head``, and over the head."""
+    head = _head_of(network)
+    in_head = {id(p) for p in head.parameters()} if head is not None else set()
+    trunk: list[torch.Tensor] = []
+    top: list[torch.Tensor] = []
+    for p in network.parameters():
+        if p.grad is not None:
+            (top if id(p) in in_head else trunk).append(p.grad.detach().float().square().sum())
+    trunk_norm = float(torch.stack(trunk).sum().sqrt()) if trunk else 0.0
+    if head is None:
+        return trunk_norm, None
+    return trunk_norm, float(torch.stack(top).sum().sqrt()) if top else 0.0
+
+
+class _HeadInputs:
+    """Collects what a network's ``head`` receives while in use (a forward hook), and the
+    spread of the encoded angles and features its ``diagnostics`` gives for them."""
+
+    def __init__(self, network: nn.Module) -> None:
+        self.head = _head_of(network)
+        self.inputs: list[torch.Tensor] = []
+        self.handle: Any = None
+
+    def __enter__(self) -> _HeadInputs:
+        if self.head is not None and hasattr(self.head, "diagnostics"):
+            self.handle = self.head.register_forward_hook(
+                lambda _m, args, _out: self.inputs.append(args[0].detach())
+            )
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        if self.handle is not None:
+            self.handle.remove()
+
+    def spreads(self) -> dict[str, float | None]:
+        out: dict[str, float | None] = dict.fromkeys(_SPREAD_KEYS)
+        if not self.inputs or self.head is None:
+            return out
+        diagnose = getattr(self.head, "diagnostics")  # noqa: B009 (a Module attribute)
+        values = diagnose(torch.cat(self.inputs))
+        for key, name in (("angles", "angle"), ("features", "feature")):
+            v = values.get(key)
+            if v is None or not len(v):
+                continue
+            v = v.detach().double().cpu()
+            std = v.std(0, unbiased=False).mean() if len(v) > 1 else torch.zeros(())
+            out[f"{name}_std"], out[f"{name}_min"] = float(std), float(v.min())
+            out[f"{name}_max"] = float(v.max())
+        return out
 
 
 def _describe(label: str, record: Mapping[str, Any], epochs: int) -> str:

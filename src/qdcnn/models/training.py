@@ -67,6 +67,20 @@ __all__ = [
 
 #: Networks a classifier can train (the registry's names when this module was imported).
 ARCHS: tuple[str, ...] = tuple(NETWORKS)
+#: Network parameters of a hybrid's head (left out when transfer's stage 1 builds a linear head).
+_HEAD_OPTIONS = (
+    "head",
+    "n_qubits",
+    "n_layers",
+    "reupload",
+    "shots",
+    "noise",
+    "readout_gain",
+    "dressed",
+)
+#: Version of the hybrid heads in a model file's header (``head_format``): 2 is the dressed
+#: head; files without the field hold the original (undressed) heads.
+HEAD_FORMAT = 2
 _MAX_CONTEXT = 64
 
 
@@ -244,6 +258,21 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     lr_schedule : {"constant", "cosine"}
         Learning rate held at ``lr``, or cosine-annealed per step from ``lr``
         to 0 over ``epochs`` (early stopping may end training sooner).
+    select : {"loss", "balanced_accuracy"}
+        The epoch kept (and early stopping's measure): the lowest validation loss, or
+        the highest validation balanced accuracy (ties: the lower loss).
+    restarts : int
+        Start a run again with the next seed (at most this many times) when its
+        validation predictions are all one class (:meth:`Trainer.fit
+        <qdcnn.models.trainer.Trainer.fit>`); ``restarts_`` says what happened.
+    transfer : bool
+        Hybrid networks only: train in stages (:mod:`qdcnn.models.transfer`): the trunk
+        with a linear head for ``epochs`` epochs, then the network's own head on the
+        frozen trunk, then everything at a tenth of ``lr``.
+    trunk_from : path or None
+        Hybrid networks only: a saved network of the same architecture, input size and
+        context (a model file of this class or of ``train-direction``) whose trunk
+        replaces stage 1 of the transfer recipe.
     tta : bool
         Test-time flip averaging: the probabilities of a frame and of its mirror
         image (left and right swapped) are averaged. Doubles inference cost.
@@ -291,9 +320,13 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     input_spec_ : InputSpec
         The preprocessing the network was trained with (kept in saved files).
     history_ : list of dict
-        Per epoch: ``epoch``, ``train_loss``, ``val_loss``, ``val_accuracy``
-        (``None`` without validation), ``lr`` (the learning rate at the epoch's
-        end), ``seconds``.
+        Per epoch, as :attr:`TrainResult.history <qdcnn.models.trainer.TrainResult>`
+        says: losses, accuracies, predicted-class counts, gradient norms, the head's
+        spreads, ``lr`` and ``seconds`` (with ``transfer``, each record's ``stage``).
+    restarts_ : list of dict
+        Runs given up because they predicted one class (their seed); empty when none.
+    seed_ : int
+        The seed of the run kept.
     best_epoch_ : int
         The epoch whose weights were kept (1-based).
     classes_ : ndarray
@@ -325,6 +358,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         class_weight: Literal["balanced"] | None = None,
         label_smoothing: float = 0.1,
         lr_schedule: Literal["constant", "cosine"] = "cosine",
+        select: Literal["loss", "balanced_accuracy"] = "loss",
+        restarts: int = 0,
+        transfer: bool = False,
+        trunk_from: str | Path | None = None,
         tta: bool = False,
         weights: str | Path | None = None,
         device: str = "auto",
@@ -352,6 +389,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.class_weight = class_weight
         self.label_smoothing = label_smoothing
         self.lr_schedule = lr_schedule
+        self.select = select
+        self.restarts = restarts
+        self.transfer = transfer
+        self.trunk_from = trunk_from
         self.tta = tta
         self.weights = weights
         self.device = device
@@ -385,6 +426,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             class_weight=self.class_weight,
             label_smoothing=self.label_smoothing,
             lr_schedule=self.lr_schedule,
+            select=self.select,
+            restarts=self.restarts,
             seed=self.seed,
             device=self.device,
             num_threads=self.num_threads,
@@ -392,6 +435,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         ).checked(min_batch_size=entry.min_batch_size)
         check_bool("tta", self.tta)
         check_bool("progress", self.progress)
+        self._check_staged()
         if self.weights is not None and not isinstance(self.weights, str | os.PathLike):
             raise ParameterError("weights", self.weights, "a weights file path or None")
         _check_crop(self.crop)
@@ -400,6 +444,18 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         _as_noise("noise", self.noise)
         _as_noise("train_noise", self.train_noise)
         return entry, settings
+
+    def _check_staged(self) -> None:
+        """``transfer`` and ``trunk_from`` need a hybrid network."""
+        check_bool("transfer", self.transfer)
+        if self.trunk_from is not None and not isinstance(self.trunk_from, str | os.PathLike):
+            raise ParameterError("trunk_from", self.trunk_from, "a model file path or None")
+        staged = self.transfer or self.trunk_from is not None
+        if staged and not _is_hybrid(self.arch):
+            what = "transfer" if self.transfer else "trunk_from"
+            raise ParameterError(
+                what, getattr(self, what), f"unset: {self.arch} is not a hybrid network"
+            )
 
     def _network_kw(self) -> dict[str, Any]:
         return dict(self.network_params or {})
@@ -419,6 +475,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         spec: InputSpec,
         history: list[dict[str, Any]],
         best_epoch: int,
+        restarts: Sequence[dict[str, Any]] = (),
+        seed: int | None = None,
     ) -> None:
         from qdcnn.models.trainer import place, resolve_device
 
@@ -428,6 +486,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.context_ = int(self.context)
         self.history_ = history
         self.best_epoch_ = best_epoch
+        self.restarts_ = list(restarts)
+        self.seed_ = int(self.seed if seed is None else seed)
         self.classes_ = np.arange(N_CLASSES)
 
     # -------------------------------------------------------------- training
@@ -465,7 +525,6 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """
         entry, settings = self._checked()
         _torch("training a CNN direction classifier")
-        from qdcnn.models.networks import build_network
         from qdcnn.models.preprocess import crop_resize, normalise
         from qdcnn.models.trainer import FrameSamples, Trainer, resolve_device, rich_progress
 
@@ -475,11 +534,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         resolve_device(self.device)  # fail before the work
         spec = input_spec(self.arch, self.crop)
         k = int(self.context)
+        trunk = None if self.trunk_from is None else self.read_trunk()
         # first: a bad weights file fails fast
-        network = build_network(
-            self.arch, 3 * k, weights=self.weights, seed=self.seed, **self._network_kw()
-        )
-        _set_quantum_noise(network, _as_noise("train_noise", self.train_noise), "train_noise")
+        network = self._build(self._head(), self.seed)
         samples = FrameSamples.sequence(crop_resize(x, spec), y, k)
         extra, extra_of = _extra_samples(views, spec, k)
         with rich_progress(self._label(), settings.epochs, enabled=self.progress) as callbacks:
@@ -491,10 +548,86 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
                 checkpoint_meta=self._meta(spec, k),
                 min_batch_size=entry.min_batch_size,
             )
-            result = trainer.fit(network, samples, extra=extra, extra_of=extra_of)
-        self._set_fitted(result.network, spec, result.history, result.best_epoch)
+            fit_kw: dict[str, Any] = {"extra": extra, "extra_of": extra_of}
+            if self.transfer or trunk is not None:
+                result = self._fit_staged(trainer, samples, trunk, fit_kw)
+            else:
+                rebuild = partial(self._build, self._head())
+                result = trainer.fit(
+                    network, samples, extra=extra, extra_of=extra_of, rebuild=rebuild
+                )
+        self._set_fitted(
+            result.network, spec, result.history, result.best_epoch, result.restarts, result.seed
+        )
         _set_quantum_noise(self.model_, _as_noise("noise", self.noise), "noise")
         return self
+
+    def _head(self) -> str | None:
+        head = self._network_kw().get("head")
+        return head if isinstance(head, str) else None
+
+    def _build(self, head: str | None, seed: int) -> nn.Module:
+        """A fresh network of this estimator (with another ``head`` for transfer's stage 1)."""
+        from qdcnn.models.networks import build_network
+
+        kw = self._network_kw()
+        if head is not None and head != kw.get("head", "quantum"):
+            kw = {k: v for k, v in kw.items() if k not in _HEAD_OPTIONS}
+            kw["head"] = head
+        network = build_network(
+            self.arch, 3 * int(self.context), weights=self.weights, seed=seed, **kw
+        )
+        _set_quantum_noise(network, _as_noise("train_noise", self.train_noise), "train_noise")
+        return network
+
+    def _fit_staged(
+        self, trainer: Any, samples: FrameSamples, trunk: Any, fit_kw: dict[str, Any]
+    ) -> Any:
+        """:func:`qdcnn.models.transfer.fit_transfer` with this estimator's networks."""
+        from qdcnn.models.transfer import data_key, fit_transfer
+
+        head = self._head() or "quantum"
+        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
+        what = repr((self.arch, int(self.context), self.weights, sorted(common.items())))
+        key = None if fit_kw.get("extra") is not None else data_key(samples, trainer.settings, what)
+        result, _ = fit_transfer(
+            trainer,
+            self._build,
+            head,
+            samples,
+            trunk=trunk,
+            cache_key=key,
+            fit_kw=fit_kw,
+        )
+        return result
+
+    def read_trunk(self) -> dict[str, Any]:
+        """The front and trunk weights of the ``trunk_from`` network, checked against this
+        estimator's architecture, input size, context and classes.
+
+        Raises
+        ------
+        InputError
+            Another architecture, input spec, frame context or class set (one line).
+        """
+        torch = _torch("reading a trunk")
+        from qdcnn.models.persistence import read_saved_network, spec_from_meta
+
+        path = self.trunk_from
+        assert path is not None
+        meta, arrays = read_saved_network(path)
+        spec = input_spec(self.arch, self.crop)
+        checks = (
+            ("architecture", meta.get("architecture"), self.arch),
+            ("input", spec_from_meta(meta.get("input_spec"), path), spec),
+            ("frames per input (context)", meta.get("context", 1), int(self.context)),
+            ("classes", meta.get("class_names"), list(DIRECTIONS)),
+        )
+        for what, theirs, ours in checks:
+            if theirs != ours:
+                raise InputError(path, f"--from: its {what} is {theirs!r}, this network's {ours!r}")
+        parts = ("front.", "trunk.")
+        return {k: torch.from_numpy(np.array(v)) for k, v in arrays.items() if k.startswith(parts)}
 
     # -------------------------------------------------------------- inference
     def predict_proba(
@@ -601,7 +734,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """Header fields of a model file, except ``history`` and ``best_epoch``."""
         from qdcnn.models.persistence import spec_to_meta
 
-        return {
+        meta = {
             "architecture": self.arch,
             "params": {**_plain_params(self.get_params()), "context": context},
             "class_names": list(DIRECTIONS),
@@ -609,6 +742,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             "context": context,
             "in_channels": 3 * context,
         }
+        if _is_hybrid(self.arch):
+            meta["head_format"] = HEAD_FORMAT
+        return meta
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the trained network, its settings and history to ``path`` (safetensors + header).
@@ -637,6 +773,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             **self._meta(self.input_spec_, self.context_),
             "history": json_safe(self.history_),
             "best_epoch": self.best_epoch_,
+            "restarts": json_safe(self.restarts_),
+            "seed_used": self.seed_,
         }
 
     def load_fitted_state(
@@ -685,12 +823,14 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         from qdcnn.models.persistence import history_from_meta, load_state_arrays, spec_from_meta
 
         spec = spec_from_meta(meta.get("input_spec"), source)
+        kw = {**_saved_head_format(meta, self.arch, source), **self._network_kw()}
         try:
-            network = build_network(self.arch, 3 * int(self.context), seed=0, **self._network_kw())
+            network = build_network(self.arch, 3 * int(self.context), seed=0, **kw)
         except ParameterError as exc:
             raise InputError(source, f"saved settings are invalid: {exc}") from None
         load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
-        self._set_fitted(network, spec, *history_from_meta(meta, source))
+        restarts, seed = _restarts_from_meta(meta, source)
+        self._set_fitted(network, spec, *history_from_meta(meta, source), restarts, seed)
 
 
 def _classifier_from_meta(
@@ -729,6 +869,42 @@ def _classifier_from_meta(
             path, f"header in_channels {in_channels!r} but context {clf.context} (3 per frame)"
         )
     return clf
+
+
+def _saved_head_format(meta: dict[str, Any], arch: str, source: object) -> dict[str, Any]:
+    """Network parameters a file's ``head_format`` implies: a hybrid saved before the
+    dressed heads (no field) is rebuilt with ``dressed=False``; other values are refused."""
+    if not _is_hybrid(arch):
+        return {}
+    if "head_format" not in meta:
+        return {"dressed": False}
+    if meta["head_format"] != HEAD_FORMAT:
+        raise InputError(
+            str(source),
+            f"header head_format {meta['head_format']!r} is not one this qdcnn reads "
+            f"({HEAD_FORMAT}, or none for the original heads)",
+        )
+    return {}
+
+
+def _restarts_from_meta(
+    meta: dict[str, Any], source: object
+) -> tuple[list[dict[str, Any]], int | None]:
+    """The restarts and the seed used a header stores (absent in older files), checked."""
+    restarts = meta.get("restarts", [])
+    seed = meta.get("seed_used")
+    if not isinstance(restarts, list) or not all(isinstance(r, dict) for r in restarts):
+        raise InputError(str(source), "header field 'restarts' is not a list of records")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+        raise InputError(str(source), f"header seed_used {seed!r} is not a seed")
+    return restarts, seed
+
+
+def _is_hybrid(arch: str) -> bool:
+    from qdcnn.models.specs import hybrid_of
+
+    hybrid = hybrid_of(arch)
+    return hybrid is not None and hybrid.name == arch
 
 
 def _as_view(view: object, shape: tuple[int, ...]) -> ExtraView:

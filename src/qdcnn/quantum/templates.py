@@ -48,13 +48,16 @@ def entangler_ranges(num_qubits: int, num_layers: int) -> tuple[int, ...]:
     return tuple((layer % (num_qubits - 1)) + 1 for layer in range(num_layers))
 
 
-def head_template(num_qubits: int, num_layers: int, *, reupload: bool = False) -> CircuitTemplate:
+def head_template(
+    num_qubits: int, num_layers: int, *, reupload: bool = False, entangle: bool = True
+) -> CircuitTemplate:
     """The quantum head's circuit; inputs ``x`` (``n``), weights ``(L, n, 3)`` flattened.
 
     Weight slot ``n + 3 (l n + i) + k`` is angle ``k`` (``phi, theta, omega``) of the
     ``Rot`` on qubit ``i`` in layer ``l``: PennyLane's weight shape, row-major. With
     ``reupload=False`` this is exactly ``AngleEmbedding(x, rotation="Y")`` followed by
-    ``StronglyEntanglingLayers(weights)``.
+    ``StronglyEntanglingLayers(weights)``. ``entangle=False`` leaves out every CNOT: the
+    state stays a product state (the head's no-entanglement ablation).
 
     Examples
     --------
@@ -72,9 +75,10 @@ def head_template(num_qubits: int, num_layers: int, *, reupload: bool = False) -
                 b.ry(q, q)
         for q in range(n):
             b.rot(q, n + 3 * (layer * n + q))
-        if n > 1:
+        if n > 1 and entangle:
             b.cnot_ring(r)
-    return b.build("qdcnn_head_reupload" if reupload else "qdcnn_head")
+    name = "qdcnn_head" + ("_reupload" if reupload else "") + ("" if entangle else "_product")
+    return b.build(name)
 
 
 def _head_shapes(
@@ -91,7 +95,9 @@ def _head_shapes(
     return xa, w.reshape(-1, n, 3)
 
 
-def head_circuit(x: ArrayLike, weights: ArrayLike, *, reupload: bool = False) -> CircuitBatch:
+def head_circuit(
+    x: ArrayLike, weights: ArrayLike, *, reupload: bool = False, entangle: bool = True
+) -> CircuitBatch:
     """The head's circuits for encoded angles ``x`` ``(B, n)`` and ``weights`` ``(L, n, 3)``.
 
     ``weights`` may also be flat, ``L x n x 3`` in that order. The result draws with
@@ -99,7 +105,7 @@ def head_circuit(x: ArrayLike, weights: ArrayLike, *, reupload: bool = False) ->
     :func:`qdcnn.quantum.export.write_qasm3` (``index`` picks the sample).
     """
     xa, w = _head_shapes(x, weights)
-    template = head_template(xa.shape[1], w.shape[0], reupload=reupload)
+    template = head_template(xa.shape[1], w.shape[0], reupload=reupload, entangle=entangle)
     return template.bind(xa, w.ravel())
 
 

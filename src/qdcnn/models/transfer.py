@@ -1,0 +1,196 @@
+"""Transfer training of a hybrid network: the standard two-stage recipe for a dressed head.
+
+Stage 1 trains the classical network: the hybrid's trunk with a linear head (for
+``qdcnn-head`` that is PilotNet). Stage 2 puts the hybrid's own head (quantum, its twin
+or an ablation) on that trunk and trains the head alone, the trunk frozen. Stage 3
+fine-tunes everything at a tenth of the learning rate (Mari et al. 2020, "Transfer
+learning in hybrid classical-quantum neural networks"; PennyLane's quantum transfer
+learning demo trains stage 2 only).
+
+The stage-1 trunk depends on the training frames, the seed and the settings, not on the
+head, so it is kept in memory (:func:`cached_trunk`): a hybrid, its twin and the ablations
+trained on the same fold with the same seed share one classical training.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from qdcnn._optional import require
+from qdcnn.errors import ParameterError
+from qdcnn.models.trainer import FrameSamples, Trainer, TrainResult, TrainSettings
+
+require("torch", "transfer training")
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+#: ``build(head, seed)``: a fresh hybrid network with head ``head`` (``"linear"`` in stage 1).
+HybridBuilder = Callable[[str, int], nn.Module]
+#: Parts of a hybrid network that stage 2 freezes and stage 3 fine-tunes.
+TRUNK_PARTS: tuple[str, str] = ("front", "trunk")
+_TRUNKS: dict[str, dict[str, torch.Tensor]] = {}
+_MAX_CACHED = 16
+
+
+def stage_epochs(epochs: int) -> tuple[int, int]:
+    """Epochs of the head stage and of the fine-tuning stage for ``epochs`` classical ones.
+
+    A quarter each (at least one): the head stage runs the trunk forward only, so the
+    three stages cost about 1.3 times the classical training alone.
+    """
+    quarter = max(1, epochs // 4)
+    return quarter, quarter
+
+
+def trunk_state(network: nn.Module) -> dict[str, torch.Tensor]:
+    """The state of ``network``'s front and trunk (copies, on the CPU), by their names."""
+    out: dict[str, torch.Tensor] = {}
+    for part in TRUNK_PARTS:
+        module = getattr(network, part, None)
+        if isinstance(module, nn.Module):
+            for key, value in module.state_dict().items():
+                out[f"{part}.{key}"] = value.detach().cpu().clone()
+    return out
+
+
+def load_trunk(network: nn.Module, state: dict[str, torch.Tensor]) -> None:
+    """Copy a :func:`trunk_state` into ``network`` (names and shapes must match)."""
+    mine = trunk_state(network)
+    if set(mine) != set(state) or any(mine[k].shape != state[k].shape for k in mine):
+        raise ParameterError("trunk", "another network's trunk", "a trunk of this network")
+    network.load_state_dict(state, strict=False)
+
+
+def freeze_trunk(network: nn.Module, frozen: bool) -> None:
+    """Stop (or restart) gradients to ``network``'s front and trunk."""
+    for part in TRUNK_PARTS:
+        module = getattr(network, part, None)
+        if isinstance(module, nn.Module):
+            for p in module.parameters():
+                p.requires_grad_(not frozen)
+
+
+def data_key(samples: FrameSamples, settings: TrainSettings, what: str) -> str:
+    """A digest of the training samples, the settings and ``what`` (the network without
+    its head): the key of a cached trunk."""
+    h = hashlib.blake2b(digest_size=16)
+    for tensor in (samples.pool, samples.windows, samples.labels):
+        h.update(np.ascontiguousarray(tensor.cpu().numpy()).tobytes())
+    h.update(repr((settings, what)).encode())
+    return h.hexdigest()
+
+
+def cached_trunk(key: str) -> dict[str, torch.Tensor] | None:
+    """The stage-1 trunk kept under ``key``, if any."""
+    return _TRUNKS.get(key)
+
+
+def keep_trunk(key: str, state: dict[str, torch.Tensor]) -> None:
+    """Keep a stage-1 trunk (the oldest goes beyond :data:`_MAX_CACHED`)."""
+    if len(_TRUNKS) >= _MAX_CACHED:
+        _TRUNKS.pop(next(iter(_TRUNKS)))
+    _TRUNKS[key] = state
+
+
+def fit_transfer(
+    trainer: Trainer,
+    build: HybridBuilder,
+    head: str,
+    samples: FrameSamples,
+    *,
+    trunk: dict[str, torch.Tensor] | None = None,
+    cache_key: str | None = None,
+    fit_kw: dict[str, Any] | None = None,
+) -> tuple[TrainResult, dict[str, torch.Tensor]]:
+    """Run the three stages (stage 1 skipped when ``trunk`` is given or cached).
+
+    Parameters
+    ----------
+    trainer : Trainer
+        Its settings are stage 1's; stage 2 runs :func:`stage_epochs`' first count at the
+        same rate, stage 3 the second count at a tenth of it.
+    build : callable
+        ``build(head, seed)``, a fresh hybrid network.
+    head : str
+        The head of the trained network.
+    trunk : dict or None
+        A trunk to start from (``train-direction --from``).
+    cache_key : str or None
+        Where stage 1's trunk is kept and looked up (:func:`data_key`).
+    fit_kw : dict or None
+        Further arguments of :meth:`Trainer.fit` (extra samples).
+
+    Returns
+    -------
+    (TrainResult, dict)
+        The result, whose history holds every stage (each record's ``stage``), and the trunk.
+    """
+    s = trainer.settings.checked(min_batch_size=trainer.min_batch_size)
+    kw = dict(fit_kw or {})
+    records: list[dict[str, Any]] = []
+    restarts: list[dict[str, Any]] = []
+    if trunk is None and cache_key is not None:
+        trunk = cached_trunk(cache_key)
+    if trunk is None:
+        first = _stage(
+            trainer, s, "classical", build("linear", s.seed), samples, kw, partial(build, "linear")
+        )
+        trunk = trunk_state(first.network)
+        records += _staged(first, "classical")
+        restarts += [{**r, "stage": "classical"} for r in first.restarts]
+        if cache_key is not None:
+            keep_trunk(cache_key, trunk)
+    head_epochs, tune_epochs = stage_epochs(s.epochs)
+
+    def with_trunk(seed: int) -> nn.Module:
+        network = build(head, seed)
+        load_trunk(network, trunk)
+        freeze_trunk(network, True)
+        return network
+
+    head_settings = replace(s, epochs=head_epochs, patience=0)
+    second = _stage(trainer, head_settings, "head", with_trunk(s.seed), samples, kw, with_trunk)
+    restarts += [{**r, "stage": "head"} for r in second.restarts]
+    freeze_trunk(second.network, False)
+    tune = replace(s, epochs=tune_epochs, lr=s.lr / 10, seed=second.seed, patience=0)
+    third = _stage(trainer, tune, "finetune", second.network, samples, kw, None)
+    offset = len(records) + len(second.history)
+    result = replace(
+        third,
+        history=records + _staged(second, "head") + _staged(third, "finetune"),
+        best_epoch=offset + third.best_epoch,
+        restarts=restarts,
+    )
+    return result, trunk
+
+
+def _stage(
+    trainer: Trainer,
+    settings: TrainSettings,
+    name: str,
+    network: nn.Module,
+    samples: FrameSamples,
+    kw: dict[str, Any],
+    rebuild: Callable[[int], nn.Module] | None,
+) -> TrainResult:
+    if name != "finetune":  # only the last stage's network is the model's
+        settings = replace(settings, checkpoint_dir=None)
+    stage = Trainer(
+        settings,
+        transform=trainer.transform,
+        on_step=trainer.on_step,
+        on_epoch=trainer.on_epoch,
+        checkpoint_meta={**trainer.checkpoint_meta, "stage": name},
+        min_batch_size=trainer.min_batch_size,
+    )
+    return stage.fit(network, samples, rebuild=rebuild, **kw)
+
+
+def _staged(result: TrainResult, stage: str) -> list[dict[str, Any]]:
+    return [{**record, "stage": stage} for record in result.history]

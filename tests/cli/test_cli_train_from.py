@@ -1,0 +1,52 @@
+"""``train-direction --from``: a trunk of another network or a non-hybrid method is refused
+in one line with exit status 2, before any frame is read."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+torch = pytest.importorskip("torch")
+
+from qdcnn.cli import app  # noqa: E402
+from qdcnn.config import PipelineConfig  # noqa: E402
+from qdcnn.direction.model import DirectionModel  # noqa: E402
+from qdcnn.models import CNNDirectionClassifier  # noqa: E402
+from qdcnn.models.networks import build_network  # noqa: E402
+
+runner = CliRunner()
+
+
+def saved_head(path: Path) -> Path:
+    network = build_network("qdcnn-head", seed=0, head="quantum")
+    clf = CNNDirectionClassifier.from_network(
+        network, "qdcnn-head", device="cpu", network_params={"head": "quantum"}
+    )
+    return DirectionModel("qdcnn-head", PipelineConfig(), clf, "toy", {}).save(path)
+
+
+@pytest.mark.parametrize(
+    ("method", "extra", "message"),
+    [
+        (
+            "qdcnn-quanv",
+            [],
+            "--from: its architecture is 'qdcnn-head', this network's 'qdcnn-quanv'",
+        ),
+        ("qdcnn-head-classical", ["--context", "2"], "its frames per input (context) is 1"),
+        ("dnn-pilotnet", [], "dnn-pilotnet is not a hybrid method"),
+    ],
+)
+def test_from_refuses_another_network_in_one_line(
+    tmp_path: Path, method: str, extra: list[str], message: str
+) -> None:
+    model = saved_head(tmp_path / "head.safetensors")
+    args = ["train-direction", "--data", "synthetic:track2:10", "--method", method]
+    args += ["--from", str(model), "--out", str(tmp_path / "out.safetensors"), *extra]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.output.splitlines() if line.strip()]
+    assert len(errors) == 1 and message in errors[0]
+    assert not (tmp_path / "out.safetensors").exists()

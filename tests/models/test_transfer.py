@@ -1,0 +1,86 @@
+"""Transfer training of hybrids: the three stages, the frozen trunk, the shared trunk cache."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from torch import nn  # noqa: E402
+
+from qdcnn.errors import ParameterError  # noqa: E402
+from qdcnn.models.hybrid import HybridNet, _make_head  # noqa: E402
+from qdcnn.models.trainer import FrameSamples, Trainer, TrainSettings  # noqa: E402
+from qdcnn.models.transfer import (  # noqa: E402
+    cached_trunk,
+    data_key,
+    fit_transfer,
+    freeze_trunk,
+    load_trunk,
+    stage_epochs,
+    trunk_state,
+)
+
+
+def build(head: str, seed: int) -> nn.Module:
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        trunk = nn.Sequential(nn.Flatten(), nn.Linear(3 * 4 * 4, 6), nn.ELU())
+        return HybridNet(None, trunk, _make_head(head, 6, n_qubits=2, n_layers=1))
+
+
+def samples(n: int = 60) -> FrameSamples:
+    rng = np.random.default_rng(0)
+    labels = np.arange(n) % 3
+    frames = rng.integers(0, 40, (n, 3, 4, 4)).astype(np.uint8)
+    frames[np.arange(n), labels, :, :] = 220  # the label's channel is bright
+    return FrameSamples.sequence(torch.from_numpy(frames), labels)
+
+
+def trainer(**kw: Any) -> Trainer:
+    s = TrainSettings(**{"epochs": 4, "batch_size": 16, "lr": 1e-2, "num_threads": 1, **kw})
+    return Trainer(s, transform=lambda x: x.float() / 255.0)
+
+
+def test_three_stages_and_a_trunk_frozen_while_the_head_trains() -> None:
+    assert stage_epochs(25) == (6, 6) and stage_epochs(2) == (1, 1)
+    result, trunk = fit_transfer(trainer(), build, "quantum", samples())
+    stages = [r["stage"] for r in result.history]
+    assert stages == ["classical"] * 4 + ["head"] + ["finetune"]
+    assert result.history[result.best_epoch - 1]["stage"] == "finetune"
+    assert set(trunk) == {"trunk.1.weight", "trunk.1.bias"}
+    final = trunk_state(result.network)
+    assert not torch.equal(final["trunk.1.weight"], trunk["trunk.1.weight"])  # fine-tuned
+    assert all(p.requires_grad for p in result.network.parameters())
+
+
+def test_a_frozen_trunk_stays_as_it_was() -> None:
+    net = build("quantum", 0)
+    before = {k: v.clone() for k, v in trunk_state(net).items()}
+    head_before = net.head.weights.detach().clone()
+    freeze_trunk(net, True)
+    trainer(epochs=1).fit(net, samples())
+    after = trunk_state(net)
+    assert all(torch.equal(before[k], after[k]) for k in before)
+    assert not torch.equal(head_before, net.head.weights.detach())
+
+
+def test_twin_and_ablations_share_the_cached_trunk() -> None:
+    t = trainer(epochs=2)
+    key = data_key(samples(), t.settings, "tiny")
+    _, trunk = fit_transfer(t, build, "quantum", samples(), cache_key=key)
+    assert cached_trunk(key) is trunk
+    twin, twin_trunk = fit_transfer(t, build, "classical", samples(), cache_key=key)
+    assert twin_trunk is trunk and {r["stage"] for r in twin.history} == {"head", "finetune"}
+    assert data_key(samples(), trainer(epochs=3).settings, "tiny") != key
+    given, _ = fit_transfer(t, build, "linear", samples(), trunk=trunk)
+    assert "classical" not in {r["stage"] for r in given.history}
+
+
+def test_a_trunk_of_another_network_is_refused() -> None:
+    other = HybridNet(None, nn.Sequential(nn.Flatten(), nn.Linear(3 * 4 * 4, 7)), nn.Identity())
+    with pytest.raises(ParameterError, match="trunk"):
+        load_trunk(build("quantum", 0), trunk_state(other))
