@@ -90,48 +90,72 @@ TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 def _write_and_replace(
     tmp: Path, data: bytes | Callable[[BinaryIO], object], target: Path
 ) -> None:
-    """Write ``tmp`` (``data``, or what ``data(file)`` writes) and rename it onto ``target``,
-    holding an ``flock`` on it throughout, so :func:`remove_dead_temporaries` never takes a
-    live writer's file for a dead one's."""
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
-    with os.fdopen(fd, "wb") as fh:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        if isinstance(data, bytes):
-            fh.write(data)
-        else:
-            data(fh)
-        fh.flush()
-        os.fsync(fh.fileno())
-        os.replace(tmp, target)
+    """Write ``tmp`` (``data``, or what ``data(file)`` writes) and rename it onto ``target``.
+
+    The writer holds a shared ``flock`` on the folder from before ``tmp`` exists until the
+    rename, so :func:`remove_dead_temporaries` (which needs the folder's exclusive lock)
+    never takes a live writer's file for a dead one's.
+    """
+    folder = _lock_folder(target.parent, fcntl.LOCK_SH)
+    try:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+        with os.fdopen(os.open(tmp, flags, 0o644), "wb") as fh:
+            if isinstance(data, bytes):
+                fh.write(data)
+            else:
+                data(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+            os.replace(tmp, target)
+    finally:
+        _unlock_folder(folder)
+
+
+def _lock_folder(folder: Path, how: int) -> int | None:
+    """An ``flock`` of kind ``how`` on ``folder`` (its open descriptor), or ``None`` when the
+    folder cannot be opened or, with ``LOCK_NB``, is locked by another process."""
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, how)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _unlock_folder(fd: int | None) -> None:
+    if fd is not None:
+        os.close(fd)  # closing the descriptor drops its flock
 
 
 def remove_dead_temporaries(folder: Path) -> list[Path]:
-    """Remove the temporary files in ``folder`` whose writer has died (``kill -9``); returns them.
+    """Remove the temporary files in ``folder`` left by writers that died (``kill -9``).
 
-    For shared folders written without a folder lock (the caches): a temporary file is a
-    dead writer's when its ``flock`` can be taken (the kernel drops a writer's lock when it
-    dies). Never raises. A writer that opened its file but has not locked it yet may lose it;
-    its rename then fails, which a cache reports as an entry not written.
+    For shared folders written without an output-folder lock (the caches). Every writer
+    holds a shared lock on the folder while its temporary file exists (the kernel drops it
+    when the writer dies), so when this takes the folder's exclusive lock every temporary
+    file there is a dead writer's. While any writer is active it removes nothing (the next
+    call will). Never raises; returns what it removed.
     """
     removed: list[Path] = []
+    lock = _lock_folder(folder, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    if lock is None:
+        return removed
     try:
         names = [n for n in os.listdir(folder) if TEMPORARY_NAME.match(n)]
+        for name in names:
+            try:
+                (folder / name).unlink()
+                removed.append(folder / name)
+            except OSError:
+                pass  # already gone
     except OSError:
-        return removed
-    for name in names:
-        path = folder / name
-        try:
-            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | os.O_NONBLOCK)
-        except OSError:
-            continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            path.unlink()
-            removed.append(path)
-        except OSError:
-            pass  # a live writer holds it, or it is already gone
-        finally:
-            os.close(fd)
+        pass
+    finally:
+        _unlock_folder(lock)
     return removed
 
 

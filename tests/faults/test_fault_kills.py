@@ -17,6 +17,7 @@ processes at points chosen by the files they have written.)
 from __future__ import annotations
 
 import fcntl
+import os
 import time
 import zlib
 from pathlib import Path
@@ -80,14 +81,22 @@ def test_killed_then_rerun_equals_an_uninterrupted_run(
 def test_a_dead_writers_cache_temporary_is_removed_and_a_live_ones_kept(
     inputs: Inputs, tmp_path: Path
 ) -> None:
-    """The caches have no folder lock: a temporary file counts as dead when its flock is free."""
+    """The caches have no output-folder lock: a writer holds a shared flock on the folder
+    while its temporary file exists, so temporaries are removed only when no writer is live."""
     cache = tmp_path / "cache"
     cache.mkdir()
     dead = cache / ".features-0.npz.0123456789ab.tmp"
     live = cache / ".features-1.npz.ba9876543210.tmp"
     dead.write_bytes(b"half an entr")
     live.write_bytes(b"being written")
-    with open(live, "rb") as held:
-        fcntl.flock(held.fileno(), fcntl.LOCK_EX)  # as a running writer holds it
+    held = os.open(cache, os.O_RDONLY)
+    try:
+        fcntl.flock(held, fcntl.LOCK_SH)  # as a running writer holds it
         invoke_ok(BY_NAME["score"].args(inputs, tmp_path), cache=cache)
-        assert not dead.exists() and live.read_bytes() == b"being written"
+        assert dead.exists() and live.read_bytes() == b"being written"
+    finally:
+        os.close(held)  # the writer ends: both files are now a dead writer's
+    for entry in cache.glob("features-*.npz"):
+        entry.unlink()  # so the next run writes an entry again, which removes dead temporaries
+    invoke_ok(BY_NAME["score"].args(inputs, tmp_path), cache=cache)
+    assert not dead.exists() and not live.exists()
