@@ -8,10 +8,12 @@ of the result files assembled from the chunks' rows).
 
 Modelled (an **estimate**, not a measurement): the run time on W workers as
 
-    T(W) = S + (N * c + n_chunks * o) / W
+    T(W) = S + F + (N * c + n_chunks * o) / W
 
-with S the serial part (reading the manifest, assembling frames.csv; taken from the
-one-process run as its wall time minus the chunks' own time), c the per-frame cost of one
+with F the fixed cost of a cluster run (shipping the processor to the workers, their first
+chunk's warm-up; fitted as local:1's measured time minus the rest of the model), S the
+serial part (reading the manifest, assembling frames.csv; taken from the one-process run as
+its wall time minus the chunks' own time), c the per-frame cost of one
 worker (the one-process run's per-frame processing and decoding), o the per-task overhead
 (the measured no-op round trip) and N / n_chunks the frames and chunks. The model is
 checked against the measured W, then evaluated for a 16-core machine and a cluster of ten
@@ -83,13 +85,19 @@ def fit_model(m: dict[str, Any]) -> dict[str, float]:
     serial = max(one["seconds"] - chunk_time, 0.0)
     noop = [r["noop_task_seconds"] for r in m["local"].values() if r["noop_task_seconds"]]
     overhead = min(noop) if noop else 0.0
-    return {"serial_s": serial, "frame_s": per_frame / 1e3, "task_overhead_s": overhead}
+    model = {"serial_s": serial, "frame_s": per_frame / 1e3, "task_overhead_s": overhead}
+    one_worker = m["local"].get("1")
+    fixed = 0.0
+    if one_worker is not None:
+        rest = predict({**model, "fixed_s": 0.0}, m["frames"], m["chunks"], 1)
+        fixed = max(one_worker["seconds"] - rest, 0.0)
+    return {**model, "fixed_s": fixed}
 
 
 def predict(model: dict[str, float], frames: float, chunks: float, workers: int) -> float:
     """Modelled seconds for ``frames`` in ``chunks`` chunks on ``workers`` workers."""
     work = frames * model["frame_s"] + chunks * model["task_overhead_s"]
-    return model["serial_s"] + work / workers
+    return model["serial_s"] + model["fixed_s"] + work / workers
 
 
 def check_model(m: dict[str, Any], model: dict[str, float]) -> dict[str, Any]:
@@ -111,7 +119,8 @@ def fleet(model: dict[str, float], scheduler_ms: float) -> dict[str, Any]:
         chunk_s_needed = workers * scheduler_ms / 1e3
         chunk = max(512, int(2 * chunk_s_needed / model["frame_s"]))
         chunks = FLEET_FRAMES / chunk
-        seconds = predict({**model, "serial_s": 0.0}, FLEET_FRAMES, chunks, workers)
+        steady = {**model, "serial_s": 0.0, "fixed_s": 0.0}  # negligible over 1e9 frames
+        seconds = predict(steady, FLEET_FRAMES, chunks, workers)
         out[name] = {
             "workers": workers,
             "chunk_frames": chunk,
