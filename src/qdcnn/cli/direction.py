@@ -317,12 +317,9 @@ def _baseline_rows(table: Table, r: MethodResult, where: list[str]) -> None:
 
 
 def _with_interval(value: float | None, interval: dict[str, Any] | None) -> str:
-    """``0.71 [0.66, 0.76]``, the value alone without an interval, ``undefined`` for None."""
-    if value is None:
-        return "undefined"
-    if interval is None:
-        return f"{value:.2f}"
-    return f"{value:.2f} [{interval['low']:.2f}, {interval['high']:.2f}]"
+    from qdcnn.direction.scores import format_value
+
+    return format_value(value, interval)
 
 
 def train_direction_cmd(

@@ -45,6 +45,7 @@ __all__ = [
     "block_bootstrap",
     "block_length",
     "format_metric",
+    "format_value",
     "format_with_interval",
     "paired_difference",
     "politis_white_block",
@@ -215,25 +216,30 @@ def undefined_reason(y_true: NDArray[np.int64]) -> str | None:
 
 def format_with_interval(value: float, interval: Interval, digits: int = 2) -> str:
     """``value [low, high]`` rounded to ``digits`` decimals, e.g. ``0.71 [0.66, 0.76]``."""
-    return f"{value:.{digits}f} [{interval.low:.{digits}f}, {interval.high:.{digits}f}]"
+    return format_value(value, interval.to_dict(), digits)
+
+
+def format_value(
+    value: float | None, interval: Mapping[str, Any] | None, digits: int = 2
+) -> str:
+    """``value [low, high]`` from an interval's JSON form; the value alone without an
+    interval, ``undefined`` for ``None`` (balanced accuracy of a one-class test set)."""
+    if value is None:
+        return "undefined"
+    if not interval:
+        return f"{value:.{digits}f}"
+    return f"{value:.{digits}f} [{interval['low']:.{digits}f}, {interval['high']:.{digits}f}]"
 
 
 def format_metric(result: Mapping[str, Any], metric: str, digits: int = 2) -> str:
-    """``result[metric]`` with its ``result[metric + "_ci"]`` interval, as a table prints it.
+    """``result[metric]`` with its ``result[metric + "_ci"]`` interval, as a table prints it
+    (:func:`format_value`); ``—`` when ``result`` has no such metric.
 
-    ``result`` is a result's JSON form (``MethodResult.to_dict()``, a ``score`` object); a
-    missing interval prints the value alone and an undefined value (balanced accuracy of a
-    one-class test set) prints ``undefined`` and a missing one ``—``.
+    ``result`` is a result's JSON form (``MethodResult.to_dict()``, a ``score`` object).
     """
     if metric not in result:
         return "—"
-    value = result[metric]
-    if value is None:
-        return "undefined"
-    ci = result.get(f"{metric}_ci")
-    if not ci:
-        return f"{value:.{digits}f}"
-    return f"{value:.{digits}f} [{ci['low']:.{digits}f}, {ci['high']:.{digits}f}]"
+    return format_value(result[metric], result.get(f"{metric}_ci"), digits)
 
 
 def block_bootstrap(
