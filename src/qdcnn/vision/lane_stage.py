@@ -27,7 +27,13 @@ from numpy.typing import NDArray
 
 from qdcnn.config import LaneConfig
 from qdcnn.errors import InputError
-from qdcnn.vision.lanes import _check_frame, _roi_window, _segments_from_edges, detect_segments
+from qdcnn.vision.lanes import (
+    _check_frame,
+    _roi_window,
+    _segments_from_edges,
+    detect_segments,
+    smooth_between,
+)
 from qdcnn.vision.metrics import as_shadow_mask
 from qdcnn.vision.removal import masked_channel_medians, remove_shadows
 from qdcnn.vision.roi import polygon_mask
@@ -133,7 +139,7 @@ def lane_segments(
     plan = _plan(shape, config)
     if plan.grey.size:
         _grey_window(image, shadow_mask, plan)
-        smoothed = _smooth(plan, config)
+        smoothed = smooth_between(plan.grey, plan.spare, config)
         cv2.Canny(smoothed, config.canny_low, config.canny_high, edges=plan.canny)
         np.bitwise_and(plan.canny, plan.roi, out=plan.edges[plan.rows, plan.cols])
     return _segments_from_edges(plan.edges, config, image.shape)
@@ -162,16 +168,3 @@ def _grey_window(
     else:
         fill = value[0]
     np.copyto(plan.grey[plan.band_in_window], fill, where=target[:, plan.cols])
-
-
-def _smooth(plan: _Plan, config: LaneConfig) -> NDArray[np.uint8]:
-    """:func:`qdcnn.vision.lanes.smooth` of ``plan.grey``, in the plan's two buffers."""
-    a, b = plan.grey, plan.spare
-    ksize = (config.blur_ksize, config.blur_ksize)
-    for _ in range(config.smoothing_iterations):
-        if config.median_ksize > 1:
-            cv2.medianBlur(a, config.median_ksize, dst=b)
-            a, b = b, a
-        cv2.GaussianBlur(a, ksize, config.blur_sigma, dst=b)
-        a, b = b, a
-    return a
