@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import replace
-from functools import lru_cache
+from functools import lru_cache, partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,14 +96,15 @@ def process_frame(
     corrected: NDArray[np.uint8] | Callable[[], NDArray[np.uint8]] = image
     if cfg.lanes.remove_shadows:
         mask = detect_shadows_uu(image, cfg.shadow, rng=rng).mask
-        shadow, roi = mask, cfg.lanes.roi
-        corrected = lambda: remove_shadows(image, shadow, road_region(image.shape, roi))  # noqa: E731
-    if mask is not None and remove_shadows is not removal.remove_shadows:
-        # a stand-in for remove_shadows (a test's) is used as given
+    if mask is None:
+        segments = lane_segments(image, cfg.lanes)
+    elif remove_shadows is removal.remove_shadows:
+        # the segments of detect_segments(corrected); ``corrected`` is built on first use
+        segments = lane_segments(image, cfg.lanes, mask)
+        corrected = partial(remove_shadows, image, mask, road_region(image.shape, cfg.lanes.roi))
+    else:  # a stand-in for remove_shadows (a test's) is used as given
         corrected = remove_shadows(image, mask, road_region(image.shape, cfg.lanes.roi))
         segments = lane_segments(corrected, cfg.lanes)
-    else:  # the segments of detect_segments(corrected), without building ``corrected``
-        segments = lane_segments(image, cfg.lanes, mask)
     lanes = {
         g: group_segments(
             segments,

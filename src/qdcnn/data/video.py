@@ -325,7 +325,10 @@ class _PyAVBackend:
 
     def __init__(self, path: Path, max_pixels: int, threads: int, index: VideoIndex | None) -> None:
         av = require("av", "decoding videos with PyAV")
+        from av.video.reformatter import VideoReformatter
+
         self._av = av
+        self._rgb = VideoReformatter()
         self.path = path
         try:
             self._container = av.open(str(path), metadata_errors="ignore")
@@ -478,7 +481,9 @@ class _PyAVBackend:
                 if frame.is_corrupt:
                     yield BadFrame(index, "corrupt data (decoded with errors)")
                 else:
-                    image = frame.to_ndarray(format="rgb24")
+                    # one converter for the whole file: to_ndarray(format=...) would set
+                    # up a new swscale context for every frame (same pixels either way)
+                    image = self._rgb.reformat(frame, format="rgb24").to_ndarray()
                     yield VideoFrame(
                         index,
                         float((pts - first) * self._time_base),
