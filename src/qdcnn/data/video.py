@@ -483,7 +483,8 @@ class _PyAVBackend:
                 else:
                     # one converter for the whole file: to_ndarray(format=...) would set
                     # up a new swscale context for every frame (same pixels either way)
-                    image = self._rgb.reformat(frame, format="rgb24").to_ndarray()
+                    rgb = self._rgb.reformat(frame, format="rgb24").to_ndarray()
+                    image = np.asarray(rgb, dtype=np.uint8)  # (it is uint8: no copy)
                     yield VideoFrame(
                         index,
                         float((pts - first) * self._time_base),
