@@ -15,22 +15,22 @@ differs from the one the camera was estimated on.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from dataclasses import replace
+from functools import lru_cache, partial
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.config import LaneConfig, PipelineConfig
+from qdcnn.vision import removal
 from qdcnn.vision.camera import CameraGeometry, apply_camera, estimate_camera, sample_indices
 from qdcnn.vision.grouping import LaneFeatures, group_segments
-from qdcnn.vision.lanes import detect_segments
+from qdcnn.vision.lane_stage import lane_segments
 from qdcnn.vision.removal import remove_shadows
 from qdcnn.vision.roi import polygon_mask, roi_rows
 from qdcnn.vision.shadows import detect_shadows_uu
 
 
-@dataclass
 class FrameResult:
     """Everything the pipeline produced for one frame.
 
@@ -39,7 +39,8 @@ class FrameResult:
     shadow_mask : ndarray of bool or None
         UU-dagger shadow mask (``None`` when shadow removal is off).
     corrected : ndarray of uint8
-        The frame after shadow removal (the input itself when off).
+        The frame after shadow removal (the input itself when off); built on first use
+        (:func:`process_frame` finds the segments without it).
     segments : ndarray, shape (N, 4)
         HoughLinesP segments ``x1, y1, x2, y2``.
     lanes : dict of str to LaneFeatures
@@ -49,11 +50,25 @@ class FrameResult:
         One line per problem met with this frame (:func:`process_recording`).
     """
 
-    shadow_mask: NDArray[np.bool_] | None
-    corrected: NDArray[np.uint8]
-    segments: NDArray[np.float64]
-    lanes: dict[str, LaneFeatures]
-    notes: list[str] = field(default_factory=list)
+    def __init__(
+        self,
+        shadow_mask: NDArray[np.bool_] | None,
+        corrected: NDArray[np.uint8] | Callable[[], NDArray[np.uint8]],
+        segments: NDArray[np.float64],
+        lanes: dict[str, LaneFeatures],
+        notes: list[str] | None = None,
+    ) -> None:
+        self.shadow_mask = shadow_mask
+        self._corrected = corrected
+        self.segments = segments
+        self.lanes = lanes
+        self.notes = [] if notes is None else notes
+
+    @property
+    def corrected(self) -> NDArray[np.uint8]:
+        if callable(self._corrected):
+            self._corrected = self._corrected()
+        return self._corrected
 
 
 def process_frame(
@@ -78,11 +93,18 @@ def process_frame(
     """
     cfg = config or PipelineConfig()
     mask = None
-    corrected = image
+    corrected: NDArray[np.uint8] | Callable[[], NDArray[np.uint8]] = image
     if cfg.lanes.remove_shadows:
         mask = detect_shadows_uu(image, cfg.shadow, rng=rng).mask
+    if mask is None:
+        segments = lane_segments(image, cfg.lanes)
+    elif remove_shadows is removal.remove_shadows:
+        # the segments of detect_segments(corrected); ``corrected`` is built on first use
+        segments = lane_segments(image, cfg.lanes, mask)
+        corrected = partial(remove_shadows, image, mask, road_region(image.shape, cfg.lanes.roi))
+    else:  # a stand-in for remove_shadows (a test's) is used as given
         corrected = remove_shadows(image, mask, road_region(image.shape, cfg.lanes.roi))
-    segments = detect_segments(corrected, cfg.lanes)
+        segments = lane_segments(corrected, cfg.lanes)
     lanes = {
         g: group_segments(
             segments,

@@ -80,6 +80,20 @@ def test_seeking_gives_exactly_the_frames_of_sequential_decoding(clip: Path, dec
                 assert f.timestamp == pytest.approx(ref.timestamp, abs=1e-6)
 
 
+def test_pyav_frames_are_pyavs_own_rgb_conversion(tmp_path: Path) -> None:
+    """The reader's one converter per file gives each frame ``to_ndarray(format="rgb24")``."""
+    path = tmp_path / "frames.mp4"
+    with VideoWriter(path, FPS) as w:
+        for i in range(12):
+            w.write(pattern(i, 66, 38))
+    with av.open(str(path)) as c:
+        expected = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+    with VideoReader(path, decoder="pyav") as reader:
+        frames = list(reader)
+    assert len(frames) == len(expected) == 12
+    assert all(np.array_equal(f.image, e) for f, e in zip(frames, expected, strict=True))
+
+
 def test_opencv_and_pyav_decode_the_same_frames(clip: Path) -> None:
     with VideoReader(clip, decoder="pyav") as a, VideoReader(clip, decoder="opencv") as b:
         fa, fb = list(a), list(b)

@@ -59,12 +59,15 @@ def bench_pipeline(
     seed: int = 0,
     say: Callable[[str], None] | None = None,
     lane_stage: bool = True,
+    sizes: tuple[tuple[int, int], ...] = ((640, 480),),
 ) -> dict[str, Any]:
     """Frames per second of the per-frame pipeline + classifier decision for each method
     (measured; batches of frames as ``qdcnn run`` processes them, :func:`_time_method`).
 
-    With ``lane_stage`` the lane stage alone at 640x480 (:func:`bench_lane_stage`) is one
-    more row of ``pipeline``.
+    Each of ``sizes`` (width, height) adds a row: the first method's trained processor on
+    the same drive rendered at that size (the data's synthetic preset, ``track1`` for a
+    recording; :func:`_time_at_size`). With ``lane_stage`` the lane stage alone at 640x480
+    (:func:`bench_lane_stage`) is one more row of ``pipeline``.
     """
     check_int("frames", frames, 1, 100_000)
     log = say or (lambda _m: None)
@@ -73,7 +76,10 @@ def bench_pipeline(
     train = load_frameset(data, seed=seed + 1)
     test = load_frameset(data, seed=seed)
     images = [test.image(i) for i in range(min(frames, len(test)))]
-    rows = [_time_method(method, train, images, cfg, data, seed, log) for method in methods]
+    processors = [_trained(method, train, cfg, data, seed, log) for method in methods]
+    rows = [_time_method(p, images, log) for p in processors]
+    for size in sizes if processors else ():
+        rows.append(_time_at_size(processors[0], data, len(images), size, seed, log))
     result: dict[str, Any] = {
         "kind": "measured",
         "data": data,
@@ -102,22 +108,16 @@ def bench_pipeline(
     return result
 
 
-def _time_method(
+def _trained(
     method: str,
     train: FrameSet,
-    images: list[NDArray[np.uint8]],
     cfg: PipelineConfig,
     data: str,
     seed: int,
     log: Callable[[str], None],
-) -> dict[str, Any]:
-    """Train ``method`` on ``train``, then time its per-frame pipeline and decision on
-    ``images`` as ``qdcnn run`` does them: :meth:`LaneDirectionProcessor.process_batch` on
-    batches of :data:`~qdcnn.runtime.chunks.BATCH_FRAMES` frames (shadows and lanes per
-    frame, one classifier call per batch, each frame's result the one it gets alone).
-    After one warm-up batch; the median of three passes."""
+) -> Any:
+    """``method`` trained on ``train``, as a :class:`LaneDirectionProcessor`."""
     from qdcnn.direction.processor import LaneDirectionProcessor
-    from qdcnn.runtime.chunks import BATCH_FRAMES
 
     grouping = get_method(method).grouping
     assert grouping is not None
@@ -127,7 +127,20 @@ def _time_method(
     model = train_direction_model(
         method, table.features[grouping][keep], train.labels()[keep], cfg, data, inner_folds=0
     )
-    processor = LaneDirectionProcessor(model, seed=seed)
+    return LaneDirectionProcessor(model, seed=seed)
+
+
+def _time_method(
+    processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
+) -> dict[str, Any]:
+    """Time a trained processor's per-frame pipeline and decision on ``images`` as ``qdcnn
+    run`` does them: :meth:`LaneDirectionProcessor.process_batch` on batches of
+    :data:`~qdcnn.runtime.chunks.BATCH_FRAMES` frames (shadows and lanes per frame, one
+    classifier call per batch, each frame's result the one it gets alone). After one
+    warm-up batch; the median of three passes."""
+    from qdcnn.runtime.chunks import BATCH_FRAMES
+
+    method = processor.model.method
     batches = [
         (images[i : i + BATCH_FRAMES], list(range(i, min(i + BATCH_FRAMES, len(images)))))
         for i in range(0, len(images), BATCH_FRAMES)
@@ -146,6 +159,30 @@ def _time_method(
         "ms_per_frame": 1e3 * per_frame,
         "frames_per_second": 1.0 / per_frame,
     }
+
+
+def _time_at_size(
+    processor: Any,
+    data: str,
+    frames: int,
+    size: tuple[int, int],
+    seed: int,
+    log: Callable[[str], None],
+) -> dict[str, Any]:
+    """:func:`_time_method` on ``frames`` frames of the data's synthetic preset (``track1``
+    for a recording) rendered at ``size``, with the processor trained at the data's size."""
+    from qdcnn.data.frames import parse_data_spec
+    from qdcnn.data.synthetic import generate_drive
+
+    parsed = parse_data_spec(data)
+    preset = parsed.value.partition(":")[0] if parsed.kind == "synthetic" else "track1"
+    w, h = size
+    log(f"rendering {frames} {preset} frames at {w}x{h}")
+    images = [s.image for s in generate_drive(preset, frames, seed=seed, width=w, height=h)]
+    row = _time_method(processor, images, log)
+    row["method"] = f"{row['method']}, {w}x{h} ({preset} rendered at that size)"
+    row["size"] = [w, h]
+    return row
 
 
 def lane_stage_config() -> PipelineConfig:

@@ -95,7 +95,14 @@ def smooth(grey: NDArray[np.uint8], config: LaneConfig = _DEFAULT) -> NDArray[np
     a = np.array(grey, dtype=np.uint8, copy=True, order="C")
     if config.smoothing_iterations == 0:
         return a
-    b = np.empty_like(a)
+    return smooth_between(a, np.empty_like(a), config)
+
+
+def smooth_between(
+    a: NDArray[np.uint8], b: NDArray[np.uint8], config: LaneConfig = _DEFAULT
+) -> NDArray[np.uint8]:
+    """:func:`smooth` of ``a`` computed in the two buffers ``a`` and ``b`` (same shape,
+    C-contiguous): both are overwritten, and the one holding the result is returned."""
     ksize = (config.blur_ksize, config.blur_ksize)
     for _ in range(config.smoothing_iterations):
         if config.median_ksize > 1:
