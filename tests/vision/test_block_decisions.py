@@ -24,7 +24,9 @@ def _all_decisions(sizes: tuple[int, ...], centroid: float, threshold: float) ->
     return scores >= threshold
 
 
-def _decisions_from_bounds(sizes: tuple[int, ...], bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+def _decisions_from_bounds(
+    sizes: tuple[int, ...], bounds: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
     low, width = bounds
     parts = []
     for n, lo, w in zip(sizes, low, width, strict=True):
@@ -101,7 +103,16 @@ def test_row_compression_keeps_five_rows_of_tall_blocks() -> None:
     assert rows is not None
     kept_block, row_map = rows
     np.testing.assert_array_equal(kept_block, [0] * 5 + [1] * 3 + [2] * 5)
-    assert row_map.tolist() == [0, 1] + [2] * 8 + [3, 4] + [5, 6, 7] + [8, 9, 10, 10, 10, 10, 11, 12]
+    assert row_map.tolist() == [0, 1] + [2] * 8 + [3, 4] + [5, 6, 7] + [
+        8,
+        9,
+        10,
+        10,
+        10,
+        10,
+        11,
+        12,
+    ]
 
 
 @pytest.mark.parametrize("ksize", [3, 5])

@@ -178,7 +178,9 @@ def test_detector_shot_counts_agree_with_aer_counts() -> None:
     cfg = ShadowConfig(shots=1024, centroid=centroid, grid=20, median_ksize=1)
     det = detect_shadows_uu(image, cfg, rng=9)
     ours = np.rint((1.0 - det.block_scores.ravel()) * 1024).astype(np.int64)
-    qc = to_qiskit(uu_dagger_circuit(value_to_angle(centroid), value_to_angle(np.array([value]))), 0)
+    qc = to_qiskit(
+        uu_dagger_circuit(value_to_angle(centroid), value_to_angle(np.array([value]))), 0
+    )
     qc.measure_all()
     job = aer.AerSimulator().run(qc, shots=1024 * runs, memory=True, seed_simulator=4)
     ones = np.array([bit[-1] == "1" for bit in job.result().get_memory()])

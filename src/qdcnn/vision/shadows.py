@@ -376,7 +376,7 @@ def calibrate_centroid(
     scaled = cluster / _CALIBRATION_BIN
     counts = np.bincount(np.rint(scaled, out=scaled).astype(np.intp))
     levels = counts.nonzero()[0]
-    angles = levels * _CALIBRATION_BIN
+    angles = np.multiply(levels, _CALIBRATION_BIN, dtype=np.float64)
     angles *= np.pi / VALUE_SCALE  # value_to_angle
     weights = counts.take(levels).astype(np.float64)
     theta0 = start * (np.pi / VALUE_SCALE)
@@ -637,7 +637,7 @@ def detect_shadows_uu(
     if backend == "numpy" and (noise is None or noise.is_ideal) and values.dtype == np.uint8:
         lookup = state_lookup(geometry, values.shape[1], cfg.downsample)
     if lookup is not None:
-        decided, scores = _looked_up(lookup, sums, centroid, cfg, rng)
+        decided, scores = _looked_up(lookup, sums, centroid, cfg, rng, source != "calibrated")
     else:
         exact = fidelity(
             value_to_angle(centroid),
@@ -682,18 +682,23 @@ def _looked_up(
     centroid: float,
     cfg: ShadowConfig,
     rng: int | np.random.Generator | None,
+    repeated: bool,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float64] | Callable[[], NDArray[np.float64]]]:
     """Decisions of the blocks from their sums, and their scores (or how to compute them).
 
-    Exact: the band of passing sums of the centroid (:func:`band_bounds`), the scores left for
-    later. With shots: each block's count of outcome 1 is ``min{k : F(k) >= u}`` for one
+    Exact, with a centroid that repeats from frame to frame (given or trained,
+    ``repeated``): the band of passing sums of the centroid (:func:`band_bounds`, cached),
+    the scores left for later; with a centroid calibrated on this frame computing the
+    scores costs less than finding a new band. With shots: each block's count of outcome 1 is ``min{k : F(k) >= u}`` for one
     uniform ``u`` (``F`` the binomial CDF of its exact probability), so it passes exactly
     when ``u <= F(limit)`` (:func:`~qdcnn.quantum.sampling.binomial_at_most`); the counts
     themselves are found from the same uniforms when the scores are asked for.
     """
     exact = partial(_overlap_scores, lookup, sums, centroid)
     if cfg.shots is None:
-        bounds = band_bounds(lookup.sizes, lookup.starts, centroid, cfg.threshold)
+        bounds = (
+            band_bounds(lookup.sizes, lookup.starts, centroid, cfg.threshold) if repeated else None
+        )
         if bounds is not None and lookup.size_index is not None:
             low, width = bounds
             offset = np.subtract(sums, low.take(lookup.size_index))
