@@ -127,7 +127,6 @@ def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Calla
         "uu-1024-shots": lambda im: detect_shadows_uu(im, shots, rng=1),
         "uu-1024-shots-calibrated": lambda im: detect_shadows_uu(im, shots_calibrated, rng=1),
         "ibt": detect_ibt,
-        "cbs": detect_cbs,
     }
 
 
@@ -154,7 +153,9 @@ def bench_shadows(
 
     The detectors take turns frame by frame and each reports the median of its single
     calls (:func:`time_in_turns`), so a change of load during the run falls on all of
-    them alike and the ratios to IBT stay comparable between runs.
+    them alike and the ratios to IBT stay comparable between runs. The UU-dagger
+    variants and IBT take turns together; the slow baselines (CBS, LBP) take theirs
+    after them, on the same frames.
 
     Parameters
     ----------
@@ -177,11 +178,16 @@ def bench_shadows(
         calibrated = ShadowConfig(shots=None)
         fixed = replace(calibrated, centroid=detect_shadows_uu(images[0], calibrated).centroid)
         methods = _detectors(calibrated, fixed)
+        slow: dict[str, Callable[[Any], object]] = {"cbs": detect_cbs}
         if include_lbp:
-            methods["lbp"] = detect_lbp
+            slow["lbp"] = detect_lbp
         size = f"{width}x{height}"
-        say(f"{size} {', '.join(methods)}")
+        say(f"{size} {', '.join([*methods, *slow])}")
+        # The slow baselines (milliseconds, megabytes of temporaries) take turns among
+        # themselves: between two calls of 0.05 ms they would leave caches cold for
+        # whichever fast detector came next and make its time depend on its neighbours.
         timings = time_in_turns(methods, images, repeats=repeats)
+        timings.update(time_in_turns(slow, images, repeats=repeats))
         grid = block_grid((height, width), calibrated.downsample, calibrated.grid)
         n_blocks = grid.grid_shape[0] * grid.grid_shape[1]
         row: dict[str, Any] = {
