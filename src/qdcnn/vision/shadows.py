@@ -639,18 +639,7 @@ def detect_shadows_uu(
     if lookup is not None:
         decided, scores = _looked_up(lookup, sums, centroid, cfg, rng, source != "calibrated")
     else:
-        exact = fidelity(
-            value_to_angle(centroid),
-            value_to_angle(blocks.ravel()),
-            shots=cfg.shots if backend == "aer" else None,
-            backend=backend,
-            noise=noise,
-            rng=rng,
-        )
-        if backend != "aer" and cfg.shots is not None:
-            decided, scores = sampled_decisions(exact, cfg.shots, cfg.threshold, rng)
-        else:
-            decided, scores = exact >= cfg.threshold, exact
+        decided, scores = _simulated(blocks, centroid, cfg, backend, noise, rng)
     block_mask = decided.reshape(blocks.shape)
     return ShadowDetection(
         _to_image_mask(block_mask, geometry, cfg.median_ksize),
@@ -662,6 +651,30 @@ def detect_shadows_uu(
         source,
         block_mask,
     )
+
+
+def _simulated(
+    blocks: NDArray[np.float64],
+    centroid: float,
+    cfg: ShadowConfig,
+    backend: str,
+    noise: NoiseSpec | None,
+    rng: int | np.random.Generator | None,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64] | Callable[[], NDArray[np.float64]]]:
+    """Decisions and scores of the blocks from their circuits (Aer, or NumPy with noise or
+    float block values): exact or Aer-sampled scores thresholded, or NumPy's exact
+    probabilities sampled by :func:`sampled_decisions`."""
+    exact = fidelity(
+        value_to_angle(centroid),
+        value_to_angle(blocks.ravel()),
+        shots=cfg.shots if backend == "aer" else None,
+        backend=backend,
+        noise=noise,
+        rng=rng,
+    )
+    if backend != "aer" and cfg.shots is not None:
+        return sampled_decisions(exact, cfg.shots, cfg.threshold, rng)
+    return exact >= cfg.threshold, exact
 
 
 def _centroid_of(
