@@ -702,10 +702,7 @@ def _looked_up(
     Exact, with a centroid that repeats from frame to frame (given or trained,
     ``repeated``): the band of passing sums of the centroid (:func:`band_bounds`, cached),
     the scores left for later; with a centroid calibrated on this frame computing the
-    scores costs less than finding a new band. With shots: each block's count of outcome 1 is ``min{k : F(k) >= u}`` for one
-    uniform ``u`` (``F`` the binomial CDF of its exact probability), so it passes exactly
-    when ``u <= F(limit)`` (:func:`~qdcnn.quantum.sampling.binomial_at_most`); the counts
-    themselves are found from the same uniforms when the scores are asked for.
+    scores costs less than finding a new band. With shots: :func:`sampled_decisions`.
     """
     exact = partial(_overlap_scores, lookup, sums, centroid)
     if cfg.shots is None:
