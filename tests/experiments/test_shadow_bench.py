@@ -12,9 +12,11 @@ def test_time_in_turns_calls_every_function_on_every_item_in_turn() -> None:
     timings = time_in_turns(fns, [1, 2, 3], repeats=2)
     assert set(timings) == {"a", "b"}
     assert all(t.repeats == 2 and t.min_s <= t.median_s <= t.max_s for t in timings.values())
-    # one untimed warm-up call each, then a and b alternate item by item
+    # one untimed warm-up call each, then a and b take turns item by item, the one to
+    # go first rotating from item to item
     assert calls[:2] == [("a", 1), ("b", 1)]
-    assert calls[2:8] == [("a", 1), ("b", 1), ("a", 2), ("b", 2), ("a", 3), ("b", 3)]
+    assert calls[2:8] == [("a", 1), ("b", 1), ("b", 2), ("a", 2), ("a", 3), ("b", 3)]
+    assert calls[8:14] == [("b", 1), ("a", 1), ("a", 2), ("b", 2), ("b", 3), ("a", 3)]
     assert len(calls) == 2 + 2 * 3 * 2
 
 

@@ -9,7 +9,13 @@ from qdcnn.errors import ParameterError
 from qdcnn.quantum import sampling
 from qdcnn.quantum.circuits import uu_dagger_circuit, vqc_circuit
 from qdcnn.quantum.execute import run_probabilities
-from qdcnn.quantum.sampling import MAX_TABLE_SHOTS, binomial_counts, sample_counts
+from qdcnn.quantum.sampling import (
+    MAX_TABLE_SHOTS,
+    binomial_at_most,
+    binomial_counts,
+    inverse_binomial,
+    sample_counts,
+)
 from qdcnn.quantum.simulator import probabilities
 
 
@@ -186,3 +192,42 @@ def test_alias_tables_hold_the_binomial_probabilities() -> None:
         np.testing.assert_allclose(
             prob, binom.pmf(np.arange(shots + 1), shots, j / sampling._GRID), atol=1e-12
         )
+
+
+# --- inverse-CDF sampling: one uniform per circuit, decisions without the counts -----------
+
+
+def test_binomial_at_most_is_u_below_the_binomial_cdf(rng: np.random.Generator) -> None:
+    from scipy.special import bdtr
+
+    p = np.concatenate([rng.uniform(0, 0.1, 100_000), rng.uniform(0, 1, 20_000), [0.0, 1.0]])
+    u = rng.random(p.size)
+    for limit in (0, 30, 500, 1023):
+        np.testing.assert_array_equal(
+            binomial_at_most(p, 1024, limit, u), u <= bdtr(limit, 1024, p)
+        )
+    assert not binomial_at_most(p, 1024, -1, u).any()
+    assert binomial_at_most(p, 1024, 1024, u).all()
+
+
+@pytest.mark.parametrize("p", [0.0, 2e-4, 0.03, 0.37, 0.5, 0.9993, 1.0])
+def test_inverse_binomial_follows_the_binomial_distribution(p: float) -> None:
+    from scipy.stats import binom, chisquare
+
+    n = 100_000
+    counts = inverse_binomial(np.full(n, p), 1024, np.random.default_rng(8).random(n))
+    if p in (0.0, 1.0):
+        assert (counts == 1024 * p).all()
+        return
+    expected = binom.pmf(np.arange(1025), 1024, p) * n
+    obs, exp = _pooled(np.bincount(counts, minlength=1025).astype(float), expected)
+    assert chisquare(obs, exp).pvalue > ALPHA
+
+
+def test_inverse_binomial_is_the_count_binomial_at_most_decides(rng: np.random.Generator) -> None:
+    p = rng.uniform(0, 0.1, 20_000)
+    u = rng.random(p.size)
+    counts = inverse_binomial(p, 1024, u)
+    for limit in (10, 30, 60):
+        np.testing.assert_array_equal(counts <= limit, binomial_at_most(p, 1024, limit, u))
+    assert inverse_binomial(np.array([0.3]), 1024, np.array([0.0]))[0] == 0

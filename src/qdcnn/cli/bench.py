@@ -26,7 +26,7 @@ def _say(silent: bool, prefix: str = "") -> Any:
 @bench_app.command("shadows")
 def bench_shadows_cmd(
     frames: Annotated[int, typer.Option(help="Synthetic track2 frames per size.")] = 5,
-    repeats: Annotated[int, typer.Option(help="Timed passes over the frames.")] = 5,
+    repeats: Annotated[int, typer.Option(help="Timed passes over the frames.")] = 15,
     aer_blocks: Annotated[
         int, typer.Option(help="Blocks timed one by one on Aer (0: skip).")
     ] = 200,

@@ -27,6 +27,10 @@ from qdcnn.vision.baselines import detect_cbs, detect_ibt, detect_lbp
 from qdcnn.vision.shadows import block_grid, detect_shadows_uu
 
 SIZES: tuple[tuple[int, int], ...] = ((320, 160), (1280, 720))
+#: Default frames and passes of :func:`bench_shadows` (``qdcnn bench shadows``): with 5 x 5
+#: single calls the UU-dagger / IBT ratios of two runs on a busy machine differed by up to
+#: 30 %; the report's Table IV uses these or more.
+BENCH_FRAMES, BENCH_REPEATS = 5, 15
 
 
 def bench_frames(width: int, height: int, n: int, seed: int = 0) -> list[NDArray[np.uint8]]:
@@ -72,18 +76,22 @@ def time_in_turns(
     The functions take turns on every item, so a change of machine load falls on all of
     them alike, and the median of the single calls (not of whole passes) ignores the
     calls that another process interrupted; their ratios stay comparable between runs on
-    a busy machine. Each function is first called once untimed.
+    a busy machine. The order of the turns rotates from item to item, so no function
+    always runs first on a frame (with its pixels not yet in cache). Each function is
+    first called once untimed.
     """
     for fn in fns.values():
         fn(items[0])
     samples: dict[str, list[float]] = {name: [] for name in fns}
+    turns = list(fns.items())
     clock = time.perf_counter
-    for _ in range(repeats):
-        for item in items:
-            for name, fn in fns.items():
-                t0 = clock()
-                fn(item)
-                samples[name].append(clock() - t0)
+    for turn in range(repeats * len(items)):
+        item = items[turn % len(items)]
+        start = turn % len(turns)
+        for name, fn in turns[start:] + turns[:start]:
+            t0 = clock()
+            fn(item)
+            samples[name].append(clock() - t0)
     out = {}
     for name, values in samples.items():
         arr = np.asarray(values)
@@ -119,7 +127,6 @@ def _detectors(calibrated: ShadowConfig, fixed: ShadowConfig) -> dict[str, Calla
         "uu-1024-shots": lambda im: detect_shadows_uu(im, shots, rng=1),
         "uu-1024-shots-calibrated": lambda im: detect_shadows_uu(im, shots_calibrated, rng=1),
         "ibt": detect_ibt,
-        "cbs": detect_cbs,
     }
 
 
@@ -135,8 +142,8 @@ IBT_TARGETS: dict[str, float] = {
 def bench_shadows(
     sizes: Sequence[tuple[int, int]] = SIZES,
     *,
-    frames: int = 5,
-    repeats: int = 5,
+    frames: int = BENCH_FRAMES,
+    repeats: int = BENCH_REPEATS,
     aer_blocks: int = 200,
     include_lbp: bool = True,
     seed: int = 0,
@@ -146,7 +153,9 @@ def bench_shadows(
 
     The detectors take turns frame by frame and each reports the median of its single
     calls (:func:`time_in_turns`), so a change of load during the run falls on all of
-    them alike and the ratios to IBT stay comparable between runs.
+    them alike and the ratios to IBT stay comparable between runs. The UU-dagger
+    variants and IBT take turns together; the slow baselines (CBS, LBP) take theirs
+    after them, on the same frames.
 
     Parameters
     ----------
@@ -169,11 +178,16 @@ def bench_shadows(
         calibrated = ShadowConfig(shots=None)
         fixed = replace(calibrated, centroid=detect_shadows_uu(images[0], calibrated).centroid)
         methods = _detectors(calibrated, fixed)
+        slow: dict[str, Callable[[Any], object]] = {"cbs": detect_cbs}
         if include_lbp:
-            methods["lbp"] = detect_lbp
+            slow["lbp"] = detect_lbp
         size = f"{width}x{height}"
-        say(f"{size} {', '.join(methods)}")
+        say(f"{size} {', '.join([*methods, *slow])}")
+        # The slow baselines (milliseconds, megabytes of temporaries) take turns among
+        # themselves: between two calls of 0.05 ms they would leave caches cold for
+        # whichever fast detector came next and make its time depend on its neighbours.
         timings = time_in_turns(methods, images, repeats=repeats)
+        timings.update(time_in_turns(slow, images, repeats=repeats))
         grid = block_grid((height, width), calibrated.downsample, calibrated.grid)
         n_blocks = grid.grid_shape[0] * grid.grid_shape[1]
         row: dict[str, Any] = {

@@ -206,3 +206,89 @@ def _small_binomial(
         extra += beyond
     counts[open_] = np.minimum(extra + 1, n)
     return counts
+
+
+# --- inverse-CDF sampling with one uniform per circuit -------------------------------------
+#
+# A count drawn as ``min{k : F(k) >= u}`` with ``F`` the binomial CDF and ``u`` uniform on
+# [0, 1) has exactly the binomial distribution, and "count <= limit" is then the event
+# ``u <= F(limit)``. So a decision about the count (a block's sampled score reaching the
+# threshold) needs one uniform and one CDF value per circuit, not the count itself; the
+# count, from the same uniform, can be found later and agrees with the decision.
+
+#: Probability grid of the CDF tables of :func:`binomial_at_most` (a power of two, so the
+#: grid cell of ``p`` is exact).
+_CDF_GRID = 1 << 16
+
+
+@lru_cache(maxsize=4)
+def _cdf_table(shots: int, limit: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``P(Bin(shots, j / G) <= limit)`` at the lower (``upper``) and upper (``lower``)
+    grid point of each cell ``j = 0 .. G`` (the cell of ``p = 1`` is the point itself)."""
+    from scipy.special import bdtr
+
+    cdf = bdtr(limit, shots, np.arange(_CDF_GRID + 1) / _CDF_GRID)
+    upper = cdf
+    lower = np.append(cdf[1:], cdf[-1])
+    for table in (upper, lower):
+        table.setflags(write=False)
+    return upper, lower
+
+
+def binomial_at_most(
+    p: NDArray[np.float64], shots: int, limit: int, u: NDArray[np.float64]
+) -> NDArray[np.bool_]:
+    """Whether the count ``min{k : P(Bin(shots, p) <= k) >= u}`` is at most ``limit``.
+
+    That is ``u <= P(Bin(shots, p) <= limit)``, exactly: the CDF is decreasing in ``p``,
+    so the tabulated values at the two grid points around ``p`` bracket it and settle
+    almost every circuit; the few whose ``u`` falls between them (about one in a thousand
+    of those near the limit) get the CDF at their own ``p`` (:func:`scipy.special.bdtr`).
+
+    Parameters
+    ----------
+    p : ndarray
+        ``P(1)`` of each circuit, in ``[0, 1]``.
+    shots, limit : int
+        Measurements per circuit and the largest count that passes.
+    u : ndarray
+        One uniform on ``[0, 1)`` per circuit.
+    """
+    if limit < 0:
+        return np.zeros(np.shape(p), dtype=bool)
+    if limit >= shots:
+        return np.ones(np.shape(p), dtype=bool)
+    upper, lower = _cdf_table(shots, limit)
+    cell = np.multiply(p, _CDF_GRID).astype(np.intp)
+    np.clip(cell, 0, _CDF_GRID, out=cell)
+    passed = u <= lower.take(cell)
+    unsure = np.flatnonzero((u <= upper.take(cell)) != passed)
+    if unsure.size:
+        from scipy.special import bdtr
+
+        exact = bdtr(limit, shots, np.clip(p.take(unsure), 0.0, 1.0))
+        passed[unsure] = u.take(unsure) <= exact
+    return passed
+
+
+def inverse_binomial(
+    p: NDArray[np.float64], shots: int, u: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """``min{k : P(Bin(shots, p) <= k) >= u}`` for each circuit: a ``Bin(shots, p)`` count
+    from the uniform ``u`` (inverse transform sampling), the count that
+    :func:`binomial_at_most` decides about."""
+    from scipy.special import bdtr
+    from scipy.stats import binom
+
+    prob = np.clip(np.asarray(p, dtype=np.float64), 0.0, 1.0)
+    with np.errstate(invalid="ignore"):
+        guess = binom.ppf(u, shots, prob)
+    counts = np.clip(np.nan_to_num(guess, nan=0.0), 0, shots).astype(np.int64)
+    for _ in range(shots + 1):  # settle rounding in the guess: F(k) >= u > F(k - 1)
+        up = (counts < shots) & (bdtr(counts, shots, prob) < u)
+        down = (counts > 0) & (bdtr(counts - 1, shots, prob) >= u)
+        if not (up.any() or down.any()):
+            break
+        counts += up
+        counts -= down
+    return counts

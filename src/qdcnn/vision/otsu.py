@@ -30,36 +30,43 @@ def uniform_histogram(
 
     ``values`` must lie in ``[first, last]`` with ``first < last`` (the case of a
     histogram over the values' own range). The edges are :func:`numpy.linspace`'s and
-    each value's bin is found as numpy finds it: scaled position, then a one-step
-    correction against the edges, the last bin closed.
+    each value falls in the bin ``i`` with ``edges[i] <= value < edges[i + 1]`` (the
+    last bin closed), as numpy assigns it: a scaled position, within one bin of the
+    answer, then one correction step against the edges each way.
     """
     step = (last - first) / nbins
     edges = _bin_positions(nbins) * step
     edges += first
     edges[-1] = last
-    index = ((values - first) / (last - first) * nbins).astype(np.intp)
-    index[index == nbins] -= 1
-    index -= values < edges.take(index)
-    index += (values >= edges.take(index + 1)) & (index != nbins - 1)
-    return np.bincount(index, minlength=nbins), edges
+    upper = np.append(edges[1:-1], np.inf)  # the last bin is closed
+    index = np.subtract(values, first)
+    index *= nbins / (last - first)
+    bins = index.astype(np.intp)
+    np.minimum(bins, nbins - 1, out=bins)
+    bins -= values < edges.take(bins)
+    bins += values >= upper.take(bins)
+    return np.bincount(bins, minlength=nbins), edges
 
 
-def otsu_threshold(values: NDArray[np.float64], nbins: int = 256) -> float:
+def otsu_threshold(
+    values: NDArray[np.float64], nbins: int = 256, span: tuple[float, float] | None = None
+) -> float:
     """Otsu's threshold of 1-D float64 ``values`` on ``nbins`` bins over their range.
 
     Equal to ``skimage.filters.threshold_otsu(values, nbins)`` (a bin centre; values at
-    or below it form the lower class). Constant input returns its value.
+    or below it form the lower class). Constant input returns its value. ``span`` is
+    ``(values.min(), values.max())`` when the caller has it already.
     """
-    first, last = float(values.min()), float(values.max())
+    first, last = span if span is not None else (float(values.min()), float(values.max()))
     if first == last:
         return first
     hist, edges = uniform_histogram(values, nbins, first, last)
     counts = hist.astype(np.float32)
     centres = (edges[:-1] + edges[1:]) / 2.0
-    weight1 = np.cumsum(counts)
-    weight2 = np.cumsum(counts[::-1])[::-1]
+    weight1 = counts.cumsum()
+    weight2 = counts[::-1].cumsum()[::-1]
     moment = counts * centres
-    mean1 = np.cumsum(moment) / weight1
-    mean2 = (np.cumsum(moment[::-1]) / weight2[::-1])[::-1]
+    mean1 = moment.cumsum() / weight1
+    mean2 = (moment[::-1].cumsum() / weight2[::-1])[::-1]
     variance12 = weight1[:-1] * weight2[1:] * (mean1[:-1] - mean2[1:]) ** 2
     return float(centres[int(np.argmax(variance12))])

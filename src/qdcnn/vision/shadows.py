@@ -21,8 +21,9 @@ default). A block is shadow when every feature's one-qubit UU-dagger test passes
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 from typing import Any
 
@@ -34,15 +35,19 @@ from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.quantum.centroid import propagate_centroid, propagation_fixed_point
 from qdcnn.quantum.noise import NoiseSpec
-from qdcnn.quantum.sampling import as_generator, binomial_counts
+from qdcnn.quantum.sampling import (
+    as_generator,
+    binomial_at_most,
+    inverse_binomial,
+)
 from qdcnn.quantum.uu_dagger import (
     VALUE_SCALE,
     angle_to_value,
     fidelity,
     overlap_fidelity,
-    ry_state_table,
     value_to_angle,
 )
+from qdcnn.vision.block_decisions import band_bounds, joined_state_tables, row_compression
 from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadow_model_file import read_shadow_model, write_shadow_model
 
@@ -120,7 +125,13 @@ class BlockGrid:
     )
     #: (table width, downsample) -> block sizes and per-block offsets into their joined
     #: RY state tables (None: too large for tables)
-    state_cache: dict[tuple[int, int], tuple[tuple[int, ...], NDArray[np.intp]] | None] = field(
+    state_cache: dict[
+        tuple[int, int],
+        tuple[tuple[int, ...], NDArray[np.intp], tuple[int, ...], NDArray[np.intp]] | None,
+    ] = field(default_factory=dict, compare=False, repr=False)
+
+    #: median aperture -> :func:`~qdcnn.vision.block_decisions.row_compression` of row_of
+    median_cache: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]] | None] = field(
         default_factory=dict, compare=False, repr=False
     )
 
@@ -218,12 +229,18 @@ class StateLookup:
     """RY state amplitudes of every possible ``uint8`` block mean, indexed by block sum.
 
     ``offsets[b] + sum_b`` indexes ``cos_half``/``sin_half`` (the joined
-    :func:`~qdcnn.quantum.uu_dagger.ry_state_table` of each block size).
+    :func:`~qdcnn.quantum.uu_dagger.ry_state_table` of each block size); the table of
+    block size (pixel count) ``sizes[i]`` starts at ``starts[i]``; ``size_index`` gives
+    each block's ``i``.
     """
 
     offsets: NDArray[np.intp]
     cos_half: NDArray[np.float64]
     sin_half: NDArray[np.float64]
+    sizes: tuple[int, ...] = ()
+    starts: tuple[int, ...] = ()
+    #: per block, its size's position in ``sizes``
+    size_index: NDArray[np.intp] | None = None
 
 
 #: Largest joined state table (entries, 16 bytes each) worth building; bigger blocks (images
@@ -248,23 +265,20 @@ def state_lookup(geometry: BlockGrid, width: int, downsample: int) -> StateLooku
             starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.intp)
             offsets = starts[inverse.ravel()]
             offsets.setflags(write=False)
-            entry = (tuple(int(n) for n in sizes), offsets)
+            size_index = inverse.ravel().astype(np.intp)
+            size_index.setflags(write=False)
+            entry = (
+                tuple(int(n) for n in sizes),
+                offsets,
+                tuple(int(i) for i in starts),
+                size_index,
+            )
         geometry.state_cache[key] = entry
     entry = geometry.state_cache[key]
     if entry is None:
         return None
-    cos_half, sin_half = _joined_state_tables(entry[0])
-    return StateLookup(entry[1], cos_half, sin_half)
-
-
-@lru_cache(maxsize=4)
-def _joined_state_tables(sizes: tuple[int, ...]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    tables = [ry_state_table(n) for n in sizes]
-    cos_half = np.concatenate([t[0] for t in tables])
-    sin_half = np.concatenate([t[1] for t in tables])
-    cos_half.setflags(write=False)
-    sin_half.setflags(write=False)
-    return cos_half, sin_half
+    cos_half, sin_half = joined_state_tables(entry[0])
+    return StateLookup(entry[1], cos_half, sin_half, entry[0], entry[2], entry[3])
 
 
 def expand_blocks(block_mask: NDArray[np.bool_], geometry: BlockGrid) -> NDArray[np.bool_]:
@@ -282,7 +296,8 @@ def binary_median(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
     if ksize * ksize > 255:
         return cv2.medianBlur(mask, ksize) if ksize <= 5 else _median_large(mask, ksize)
     sums = cv2.boxFilter(mask, -1, (ksize, ksize), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    return np.greater(sums, (ksize * ksize) // 2).view(np.uint8)
+    cv2.threshold(sums, (ksize * ksize) // 2, 1, cv2.THRESH_BINARY, dst=sums)  # in place: 0/1
+    return sums
 
 
 def _median_large(mask: NDArray[np.uint8], ksize: int) -> NDArray[np.uint8]:
@@ -314,10 +329,11 @@ def extreme_cluster(
     if pick not in ("lowest", "highest"):
         raise ParameterError("pick", pick, "'lowest' or 'highest'")
     v = np.asarray(values, dtype=np.float64).ravel()
-    if v.min() == v.max():
+    first, last = float(v.min()), float(v.max())
+    if first == last:
         return v
     if classes == 2:
-        t = otsu_threshold(v, nbins=256)
+        t = otsu_threshold(v, 256, (first, last))
         return v[v <= t] if pick == "lowest" else v[v > t]
     from skimage.filters import threshold_multiotsu
 
@@ -356,12 +372,14 @@ def calibrate_centroid(
     cluster = extreme_cluster(
         block_values, cfg.calibration_classes, "lowest" if feature == "intensity" else "highest"
     )
-    start = float(cluster.mean())
-    counts = np.bincount(np.round(cluster / _CALIBRATION_BIN).astype(np.intp))
-    levels = np.flatnonzero(counts)
-    angles = value_to_angle(levels * _CALIBRATION_BIN)
-    weights = counts[levels].astype(np.float64)
-    theta0 = float(value_to_angle(start))
+    start = float(cluster.sum()) / cluster.size  # cluster.mean(), fewer layers
+    scaled = cluster / _CALIBRATION_BIN
+    counts = np.bincount(np.rint(scaled, out=scaled).astype(np.intp))
+    levels = counts.nonzero()[0]
+    angles = np.multiply(levels, _CALIBRATION_BIN, dtype=np.float64)
+    angles *= np.pi / VALUE_SCALE  # value_to_angle
+    weights = counts.take(levels).astype(np.float64)
+    theta0 = start * (np.pi / VALUE_SCALE)
     iterations, tol = cfg.propagation_iterations, cfg.propagation_tol
     theta = propagation_fixed_point(angles, weights, theta0, iterations=iterations, tol=tol)
     if theta is None:
@@ -398,13 +416,26 @@ class ShadowDetection:
 
     mask: NDArray[np.bool_]
     block_values: NDArray[np.float64]
-    block_scores: NDArray[np.float64]
+    #: the block scores, or a function that computes them on first use of ``block_scores``
+    scores: NDArray[np.float64] | Callable[[], NDArray[np.float64]] = field(repr=False)
     centroid: float
     threshold: float
     feature: str
     centroid_source: str
     block_mask: NDArray[np.bool_] | None = None
     feature_values: NDArray[np.float64] | None = None
+
+    @property
+    def block_scores(self) -> NDArray[np.float64]:
+        """Score of every block, shape ``(gh, gw)``.
+
+        The fast intensity path decides the blocks from their sums without the scores
+        (:func:`~qdcnn.vision.block_decisions.band_bounds`, or one uniform per block with
+        shots); it computes them here, on first use, with the same formula and uniforms.
+        """
+        if callable(self.scores):
+            self.scores = self.scores()
+        return self.scores
 
     @property
     def shadow_fraction(self) -> float:
@@ -584,10 +615,13 @@ def detect_shadows_uu(
     scores come from :func:`~qdcnn.quantum.uu_dagger.overlap_fidelity` with the
     test states looked up by block sum (:func:`state_lookup`): the same
     statevector result as simulating each block's circuit (tested to 1e-12, and
-    against Aer), without a cosine per block. On the NumPy backend shots are then
-    drawn from the exact (or noisy) probabilities by :func:`sampled_scores`: the
-    binomial statistics of measuring each circuit ``shots`` times, from a faster
-    sampler than :func:`~qdcnn.quantum.uu_dagger.fidelity`'s (Aer samples its own).
+    against Aer), without a cosine per block. The exact decisions are those scores
+    thresholded, found from the block sums directly
+    (:func:`~qdcnn.vision.block_decisions.band_bounds`); ``block_scores`` is then
+    computed on first use. On the NumPy backend shots are drawn from the exact (or
+    noisy) probabilities by :func:`sampled_decisions`: the binomial statistics of
+    measuring each circuit ``shots`` times, one uniform per circuit (Aer samples its
+    own).
     """
     cfg = config or ShadowConfig()
     if model is not None and model.is_multi:
@@ -602,31 +636,45 @@ def detect_shadows_uu(
     lookup = None
     if backend == "numpy" and (noise is None or noise.is_ideal) and values.dtype == np.uint8:
         lookup = state_lookup(geometry, values.shape[1], cfg.downsample)
-    if lookup is None:
-        scores = fidelity(
-            value_to_angle(centroid),
-            value_to_angle(blocks.ravel()),
-            shots=cfg.shots if backend == "aer" else None,
-            backend=backend,
-            noise=noise,
-            rng=rng,
-        )
-        if backend != "aer" and cfg.shots is not None:
-            scores = sampled_scores(scores, cfg.shots, rng)
+    if lookup is not None:
+        decided, scores = _looked_up(lookup, sums, centroid, cfg, rng, source != "calibrated")
     else:
-        scores = _looked_up_scores(lookup, sums, centroid, cfg.shots, rng)
-    scores = scores.reshape(blocks.shape)
-    block_mask = scores >= cfg.threshold
+        decided, scores = _simulated(blocks, centroid, cfg, backend, noise, rng)
+    block_mask = decided.reshape(blocks.shape)
     return ShadowDetection(
         _to_image_mask(block_mask, geometry, cfg.median_ksize),
         blocks,
-        scores,
+        _reshaped(scores, blocks.shape),
         centroid,
         cfg.threshold,
         cfg.feature,
         source,
         block_mask,
     )
+
+
+def _simulated(
+    blocks: NDArray[np.float64],
+    centroid: float,
+    cfg: ShadowConfig,
+    backend: str,
+    noise: NoiseSpec | None,
+    rng: int | np.random.Generator | None,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64] | Callable[[], NDArray[np.float64]]]:
+    """Decisions and scores of the blocks from their circuits (Aer, or NumPy with noise or
+    float block values): exact or Aer-sampled scores thresholded, or NumPy's exact
+    probabilities sampled by :func:`sampled_decisions`."""
+    exact = fidelity(
+        value_to_angle(centroid),
+        value_to_angle(blocks.ravel()),
+        shots=cfg.shots if backend == "aer" else None,
+        backend=backend,
+        noise=noise,
+        rng=rng,
+    )
+    if backend != "aer" and cfg.shots is not None:
+        return sampled_decisions(exact, cfg.shots, cfg.threshold, rng)
+    return exact >= cfg.threshold, exact
 
 
 def _centroid_of(
@@ -641,36 +689,110 @@ def _centroid_of(
     return calibrate_centroid(blocks, cfg.feature, cfg), "calibrated"
 
 
-def _looked_up_scores(
+def _looked_up(
     lookup: StateLookup,
     sums: NDArray[Any],
     centroid: float,
-    shots: int | None,
+    cfg: ShadowConfig,
     rng: int | np.random.Generator | None,
-) -> NDArray[np.float64]:
-    """Block fidelities from the test states looked up by block sum (exact, or sampled
-    with ``shots``)."""
+    repeated: bool,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64] | Callable[[], NDArray[np.float64]]]:
+    """Decisions of the blocks from their sums, and their scores (or how to compute them).
+
+    Exact, with a centroid that repeats from frame to frame (given or trained,
+    ``repeated``): the band of passing sums of the centroid (:func:`band_bounds`, cached),
+    the scores left for later; with a centroid calibrated on this frame computing the
+    scores costs less than finding a new band. With shots: :func:`sampled_decisions`.
+    """
+    exact = partial(_overlap_scores, lookup, sums, centroid)
+    if cfg.shots is None:
+        bounds = (
+            band_bounds(lookup.sizes, lookup.starts, centroid, cfg.threshold) if repeated else None
+        )
+        if bounds is not None and lookup.size_index is not None:
+            low, width = bounds
+            offset = np.subtract(sums, low.take(lookup.size_index))
+            return offset.view(np.uint64) <= width.take(lookup.size_index), exact
+        scores = exact()
+        return scores >= cfg.threshold, scores
+    return sampled_decisions(exact(), cfg.shots, cfg.threshold, rng)
+
+
+def sampled_decisions(
+    exact: NDArray[np.float64],
+    shots: int,
+    threshold: float,
+    rng: int | np.random.Generator | None,
+) -> tuple[NDArray[np.bool_], Callable[[], NDArray[np.float64]]]:
+    """Shot-sampled decisions ``score >= threshold`` of circuits with exact scores ``P(0)``,
+    and a function giving their sampled scores (the fraction of ``shots`` measurements
+    giving 0).
+
+    Each circuit's count of outcome 1 is ``min{k : F(k) >= u}`` for one uniform ``u``
+    (``F`` the CDF of ``Bin(shots, 1 - exact)``): exactly binomial. Its score passes when
+    the count is at most the largest passing count ``limit``, that is when
+    ``u <= F(limit)`` (:func:`~qdcnn.quantum.sampling.binomial_at_most`); the counts
+    themselves (:func:`~qdcnn.quantum.sampling.inverse_binomial`, same uniforms) are only
+    found when the scores are asked for.
+    """
+    p = 1.0 - exact
+    u = as_generator(rng).random(p.size)
+    limit = _most_ones(shots, threshold)
+    passed = binomial_at_most(p, shots, limit, u)
+    return passed, partial(_inverse_scores, p, u, passed, shots, limit)
+
+
+def _overlap_scores(lookup: StateLookup, sums: NDArray[Any], centroid: float) -> NDArray[Any]:
+    """Exact block fidelities from the test states looked up by block sum."""
     index = lookup.offsets + sums
-    scores = overlap_fidelity(
-        float(value_to_angle(centroid)),
-        lookup.cos_half.take(index),
-        lookup.sin_half.take(index),
+    return overlap_fidelity(
+        float(value_to_angle(centroid)), lookup.cos_half.take(index), lookup.sin_half.take(index)
     )
-    return scores if shots is None else sampled_scores(scores, shots, rng)
 
 
-def sampled_scores(
-    exact: NDArray[np.float64], shots: int, rng: int | np.random.Generator | None
+@lru_cache(maxsize=16)
+def _most_ones(shots: int, threshold: float) -> int:
+    """Largest count of outcome 1 whose score ``(shots - count) / shots`` (as
+    :func:`_inverse_scores` computes it) reaches ``threshold``; -1 if none does."""
+    scores = (shots - np.arange(shots + 1)) / float(shots)
+    return int(np.count_nonzero(scores >= threshold)) - 1
+
+
+def _inverse_scores(
+    p: NDArray[np.float64],
+    u: NDArray[np.float64],
+    passed: NDArray[np.bool_],
+    shots: int,
+    limit: int,
 ) -> NDArray[np.float64]:
-    """Shot estimates of the block scores ``P(0)``: the fraction of ``shots`` measurements
-    giving 0, drawn from their exact binomial distribution by
-    :func:`~qdcnn.quantum.sampling.binomial_counts`."""
-    return (shots - binomial_counts(1.0 - exact, shots, rng)) / float(shots)
+    """Sampled scores from the uniforms of :func:`_looked_up`: the counts by inverse
+    transform, held to the side of ``limit`` the decisions took (they differ only where
+    rounding in two CDF evaluations disagrees)."""
+    counts = inverse_binomial(p, shots, u)
+    counts = np.where(passed, np.minimum(counts, limit), np.maximum(counts, limit + 1))
+    return (shots - counts) / float(shots)
+
+
+def _reshaped(
+    scores: NDArray[np.float64] | Callable[[], NDArray[np.float64]], shape: tuple[int, ...]
+) -> NDArray[np.float64] | Callable[[], NDArray[np.float64]]:
+    if callable(scores):
+        return lambda: scores().reshape(shape)
+    return scores.reshape(shape)
 
 
 def _to_image_mask(
     block_mask: NDArray[np.bool_], geometry: BlockGrid, median_ksize: int
 ) -> NDArray[np.bool_]:
+    """The block mask at the image size, median filtered; blocks taller than the filter
+    are filtered on their kept rows only (:func:`~qdcnn.vision.block_decisions.row_compression`)."""
+    if 1 < median_ksize and median_ksize * median_ksize <= 255:
+        if median_ksize not in geometry.median_cache:
+            geometry.median_cache[median_ksize] = row_compression(geometry.row_of, median_ksize)
+        rows = geometry.median_cache[median_ksize]
+        if rows is not None:
+            kept = block_mask.take(geometry.col_of, axis=1).take(rows[0], axis=0)
+            return binary_median(kept.view(np.uint8), median_ksize).take(rows[1], axis=0).view(bool)
     full = expand_blocks(block_mask, geometry)
     if median_ksize > 1:
         full = binary_median(full.view(np.uint8), median_ksize).view(bool)  # 0/1 bytes

@@ -144,10 +144,11 @@ QUICK = Profile(
     noise_groupings=("image-split",),
     noise_strengths=PAPER_STRENGTHS,
     shadow_scenes=16,
-    bench_sizes=((320, 160),),
-    # as `qdcnn bench shadows`: fewer frames and passes gave ratios to IBT off by 2x
+    bench_sizes=((320, 160), (1280, 720)),
+    # as `qdcnn bench shadows` (shadow_bench.BENCH_FRAMES, BENCH_REPEATS): fewer frames
+    # and passes gave ratios to IBT off by 2x, and 5 passes by up to 30 % on a busy machine
     bench_frames=5,
-    bench_repeats=5,
+    bench_repeats=15,
     aer_blocks=20,
 )
 FULL = Profile(
@@ -160,7 +161,7 @@ FULL = Profile(
     shadow_scenes=48,
     bench_sizes=((320, 160), (1280, 720)),
     bench_frames=5,
-    bench_repeats=7,
+    bench_repeats=21,
     aer_blocks=200,
 )
 #: Seconds, for tests and smoke checks: every section runs, the numbers mean nothing.

@@ -31,7 +31,7 @@ DETECTORS: dict[str, tuple[str, str | None]] = {
 
 def timing_section(ctx: RunContext, section: Section) -> None:
     """Run the shadow benchmark and lay its measurements beside Table IV."""
-    from qdcnn.experiments.shadow_bench import bench_shadows
+    from qdcnn.experiments.shadow_bench import BENCH_FRAMES, BENCH_REPEATS, bench_shadows
 
     profile = ctx.profile
     aer = has_module("qiskit_aer")
@@ -57,7 +57,8 @@ def timing_section(ctx: RunContext, section: Section) -> None:
         "column is its Table IV (frame size and hardware not stated); its QDCNN value is an "
         "estimate of hardware time, not a measurement, so it is shown only in the estimates "
         "table below. The detectors take turns frame by frame, so a change of load falls on "
-        "all of them alike; the frames and passes are those of `qdcnn bench shadows` (5 and 5) "
+        "all of them alike (the order of the turns rotating from frame to frame); the frames "
+        f"and passes are those of `qdcnn bench shadows` ({BENCH_FRAMES} and {BENCH_REPEATS}) "
         "or more, so its ratios to IBT agree with the benchmark's."
     )
     section.table(*_measured_table(result["results"]), caption="measured (this machine)")
