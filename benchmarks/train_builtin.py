@@ -13,11 +13,12 @@ The recipe (seed 0, CPU, 2 torch threads)
   ``stride`` (:data:`RECORDINGS`: lake 1 in 13, mountain 1 in 3, dark mountain 1 in 15,
   real sample 1 in 3), about 400 frames each, plus 150 frames of each preset, ~2,000 in
   all; with :data:`EPOCHS` = 15 classical epochs (and 3 + 3 of the later stages) one
-  training costs about 10 minutes of CPU on 2 threads. Labels are made on the whole recording (smoothing as
-  ``qdcnn evaluate`` does) and then thinned. The simulator tracks keep their own unit and
-  default threshold; the real dashcam sample is ``@unit=rad,threshold=p33`` (the straight
-  class = the 33 % smallest |smoothed steering| of the TRAINING frames, as the
-  cross-recording protocol resolves it), so it gives three classes.
+  training costs about 10 minutes of CPU on 2 threads. Labels are made on the whole
+  recording (smoothing as ``qdcnn evaluate`` does) and then thinned. The simulator tracks
+  keep their own unit and default threshold; the real dashcam sample is
+  ``@unit=rad,threshold=p33`` (the straight class = the 33 % smallest |smoothed steering|
+  of all the TRAINING frames, simulator ones included, as the cross-recording protocol
+  resolves it), so it gives three classes.
 * Frames are cropped and resized to the network input per recording (the real sample is
   640x480, the simulator 320x160), as ``qdcnn evaluate`` does for a CNN.
 
@@ -40,7 +41,8 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
 ``qdcnn.direction.builtin.BUILTIN_SHA256``.
 
     python benchmarks/train_builtin.py --data-root ../shared/data
-    python benchmarks/train_builtin.py --skip-final      # only the leave-one-out scores
+    python benchmarks/train_builtin.py --skip-final --leave-out real-dashcam-sample
+        # the saved model kept: (re)score these left-out recordings, update header and JSON
 """
 
 from __future__ import annotations
@@ -167,7 +169,8 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
 def training_options() -> Any:
     from qdcnn.direction.methods import TrainingOptions
 
-    return TrainingOptions(epochs=int(os.environ.get("BUILTIN_EPOCHS", EPOCHS)), threads=THREADS, progress=False, transfer=True)
+    epochs = int(os.environ.get("BUILTIN_EPOCHS", EPOCHS))  # a quick try: BUILTIN_EPOCHS=1
+    return TrainingOptions(epochs=epochs, threads=THREADS, progress=False, transfer=True)
 
 
 def stacked(parts: list[Part], method: str) -> tuple[np.ndarray, np.ndarray]:
@@ -297,8 +300,11 @@ def save(model: Any, info: dict[str, Any], loo: dict[str, list[dict[str, Any]]])
         model.summary["builtin"] = summary
         path = model.save(MODEL_PATH)
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
-        result["model"] = {"path": str(path.relative_to(REPO)), "sha256": digest,
-                           "bytes": path.stat().st_size}
+        result["model"] = {
+            "path": str(path.relative_to(REPO)),
+            "sha256": digest,
+            "bytes": path.stat().st_size,
+        }
         print(f"model {path} ({path.stat().st_size} bytes) sha256 {digest}", flush=True)
     text = json.dumps(result, indent=1, default=_plain) + "\n"
     atomic_write_bytes(RESULTS_PATH, text.encode())
@@ -312,20 +318,40 @@ def _plain(value: Any) -> Any:
     raise TypeError(type(value).__name__)
 
 
+def _saved_rows() -> dict[str, list[dict[str, Any]]]:
+    """The leave-one-out rows of the results JSON, if any."""
+    if not RESULTS_PATH.is_file():
+        return {}
+    rows: dict[str, list[dict[str, Any]]] = json.loads(RESULTS_PATH.read_text())[
+        "leave_one_out_rows"
+    ]
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--data-root", type=Path, default=REPO.parent / "shared" / "data")
     parser.add_argument("--leave-out", default=",".join(LEAVE_OUT))
-    parser.add_argument("--skip-final", action="store_true")
+    parser.add_argument(
+        "--skip-final",
+        action="store_true",
+        help="keep the saved model (add the scores to its header and to the JSON)",
+    )
     args = parser.parse_args()
     import torch
+
+    from qdcnn.direction.model import DirectionModel
 
     torch.set_num_threads(THREADS)
     os.environ.setdefault("OMP_NUM_THREADS", str(THREADS))
     sets = load_sets(args.data_root)
-    model, info = (None, {}) if args.skip_final else train_final(sets)
     loo: dict[str, list[dict[str, Any]]] = {}
-    if model is not None:
+    if args.skip_final:  # the saved model, its header updated with the scores
+        model = DirectionModel.load(MODEL_PATH)
+        info = model.summary["builtin"]["training"]
+        loo = {k: v for k, v in _saved_rows().items() if k not in args.leave_out.split(",")}
+    else:
+        model, info = train_final(sets)
         print(f"trained on {info['frames']} frames in {info['wall_s']} s", flush=True)
         save(model, info, loo)
     for test in filter(None, args.leave_out.split(",")):
