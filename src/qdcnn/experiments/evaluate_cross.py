@@ -277,7 +277,7 @@ def _concatenate(parts: list[NDArray[Any]], m: DirectionMethod) -> NDArray[Any]:
     joined = np.concatenate(parts)
     spec = getattr(parts[0], "spec", None)
     if spec is not None and all(getattr(p, "spec", None) == spec for p in parts):
-        return type(parts[0])(joined, spec)  # type: ignore[call-arg]
+        return type(parts[0])(joined, spec)
     return joined
 
 
