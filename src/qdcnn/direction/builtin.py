@@ -65,7 +65,7 @@ SCORE_FOLDS, SCORE_GAP = 5, 5
 #: The built-in QDCNN model, shipped with the package (``benchmarks/train_builtin.py``).
 QDCNN_FILE = Path(__file__).with_name("builtin_models") / "qdcnn-head.safetensors"
 #: The SHA-256 of :data:`QDCNN_FILE`: a file with another digest is refused at load.
-QDCNN_SHA256 = "08cd4dc6d1d26e6afc09238ab74b5a801a32590539fc1ee3dd37ce7c9951e3b9"
+QDCNN_SHA256 = "efed43001d42183fd7f33bfab3955ea7e76359205cb9915bb64005905dfa395f"
 
 
 def builtin_qdcnn_model(path: Path | None = None, sha256: str | None = None) -> DirectionModel:
