@@ -128,13 +128,27 @@ def test_a_dataset_that_fails_to_load_gives_exit_1_and_the_others_are_scored(
 
 
 @pytest.mark.slow
-def test_without_model_the_built_in_model_decides_and_is_named() -> None:
+@pytest.mark.base
+@pytest.mark.parametrize("torch_installed", [True, False])
+def test_without_model_the_built_in_model_decides_and_is_named(
+    torch_installed: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from qdcnn._optional import has_torch
+
+    if torch_installed and not has_torch():
+        pytest.skip("the QDCNN model needs torch")
+    monkeypatch.setattr("qdcnn.direction.builtin.has_torch", lambda: torch_installed)
     res = runner.invoke(app, ["score", "--data", "synthetic:track1:60", "--json"])
     assert res.exit_code == 0, res.stderr
     row, summary = json_lines(res.stdout)
-    assert row["model"].startswith("built-in lane model (image-split-uu trained on synthetic:")
+    expected = (
+        "built-in qdcnn-head (trained on "
+        if torch_installed
+        else ("built-in lane model image-split-uu trained on synthetic:")
+    )
+    assert row["model"].startswith(expected)
     assert summary["model"] == row["model"]
-    assert "note: no --model: the built-in lane model" in res.stderr
+    assert f"note: no --model: model: {row['model']}" in res.stderr
 
 
 def test_each_row_or_frame_left_out_is_one_note_naming_it(model_file: Path, tmp_path: Path) -> None:

@@ -50,3 +50,21 @@ def test_from_refuses_another_network_in_one_line(
     errors = [line for line in result.output.splitlines() if line.strip()]
     assert len(errors) == 1 and message in errors[0]
     assert not (tmp_path / "out.safetensors").exists()
+
+
+def test_from_a_model_without_a_network_is_refused_in_one_line(tmp_path: Path) -> None:
+    import numpy as np
+
+    from qdcnn.direction.model import train_direction_model
+
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(-1, 1, (60, 2)), np.arange(60) % 3
+    lane = train_direction_model("lines-logreg", x, y, PipelineConfig(), "toy")
+    path = lane.save(tmp_path / "lines.safetensors")
+    args = ["train-direction", "--data", "synthetic:track2:10", "--method", "qdcnn-head"]
+    args += ["--from", str(path), "--out", str(tmp_path / "out.safetensors")]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.output.splitlines() if line.strip()]
+    assert errors == [f"error: {path}: the model's method 'lines-logreg' has no trained network"]
+    assert not (tmp_path / "out.safetensors").exists()

@@ -45,13 +45,36 @@ def test_every_good_image_gets_a_quoted_row_and_an_overlay(default_model_result)
     assert result.exit_code == 1
 
 
-def test_without_a_model_the_default_is_trained_and_said(default_model_result) -> None:
+def test_without_a_model_the_built_in_model_decides_and_is_said(default_model_result) -> None:
     *_, result, collected = default_model_result
+    from qdcnn._optional import has_torch
+    from qdcnn.direction.builtin import describe_default_model
+
+    name = describe_default_model(result.model)
+    assert collected.notes == [f"no --model: model: {name}"]
+    assert result.to_dict()["model"] == name
+    if has_torch():  # the built-in QDCNN model, shipped with the package
+        assert result.model.method == "qdcnn-head"
+        assert name.startswith("built-in qdcnn-head (trained on udacity-lake-track, ")
+    else:
+        assert result.model.method == "image-split-uu"
+        presets = "synthetic:track1:300 + synthetic:track2:300 + synthetic:rain:300"
+        assert result.model.trained_on == presets
+        assert result.to_dict()["model_summary"]["n"] == 900
+
+
+def test_a_lane_method_gets_its_built_in_lane_model_trained_and_said(tmp_path: Path) -> None:
+    folder = tmp_path / "frames"
+    for i, scene in enumerate(generate_scenes("track2", 2, seed=4)):
+        write_image(folder / f"{i}.png", scene.image)
+    collected = Collector()
+    spec = DetectLanesSpec((folder,), tmp_path / "out", method="image-split-uu")
+    result = detect_lanes(spec, collected)
     presets = "synthetic:track1:300 + synthetic:track2:300 + synthetic:rain:300"
     assert result.model.trained_on == presets
     cv = result.to_dict()["model_summary"]["cross_validation"]
     assert collected.notes == [
-        f"no --model: the built-in model, image-split-uu trained on {presets}; 5-fold "
+        f"no --model: model: built-in lane model image-split-uu trained on {presets}; 5-fold "
         f"contiguous CV accuracy {cv['accuracy']:.3f} (majority class "
         f"{cv['majority_baseline']:.3f})"
     ]

@@ -227,3 +227,19 @@ def test_a_cnn_trains_on_the_training_recordings_and_scores_the_test_one() -> No
 def test_a_percentile_threshold_inside_one_recording_is_refused() -> None:
     with pytest.raises(ParameterError, match="a percentile \\(pNN\\) is taken from training"):
         run_evaluation(EvaluationSpec(f"{TRACK2}@threshold=p33", "kmeans-uu"))
+
+
+def test_frames_prepared_for_a_network_stay_prepared_when_recordings_are_joined() -> None:
+    pytest.importorskip("torch")
+    from qdcnn.direction.methods import get_method
+    from qdcnn.experiments.evaluate_cross import _concatenate
+    from qdcnn.models.preprocess import PreparedFrames
+    from qdcnn.models.specs import PILOTNET_INPUT
+
+    a = PreparedFrames(np.zeros((2, 66, 200, 3), np.uint8), PILOTNET_INPUT)
+    b = PreparedFrames(np.ones((3, 66, 200, 3), np.uint8), PILOTNET_INPUT)
+    joined = _concatenate([a, b], get_method("qdcnn-head"))
+    assert isinstance(joined, PreparedFrames) and joined.spec == PILOTNET_INPUT
+    assert joined.shape == (5, 66, 200, 3) and joined[2:].min() == 1
+    raw = _concatenate([np.asarray(a), np.asarray(b)], get_method("qdcnn-head"))
+    assert not isinstance(raw, PreparedFrames)  # raw frames are cropped and resized later

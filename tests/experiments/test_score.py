@@ -138,12 +138,25 @@ def test_bad_specs_are_refused_before_anything_runs() -> None:
 
 
 @pytest.mark.slow
-def test_without_a_model_the_built_in_lane_model_decides() -> None:
+@pytest.mark.base
+def test_without_a_model_or_torch_the_built_in_lane_model_decides(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr("qdcnn.direction.builtin.has_torch", lambda: False)
     collector = Collector()
     result = run_score(ScoreSpec(("synthetic:track1:60",), resamples=50), collector)
-    assert result.model_name.startswith("built-in lane model (image-split-uu trained on ")
+    assert result.model_name.startswith("built-in lane model image-split-uu trained on ")
     assert result.rows[0].to_dict(result.model_name)["model"] == result.model_name
-    assert any(note.startswith("no --model: the built-in lane model") for note in collector.notes)
+    assert f"no --model: model: {result.model_name}" in collector.notes
+
+
+def test_without_a_model_the_built_in_qdcnn_model_decides_with_torch() -> None:
+    pytest.importorskip("torch")
+    collector = Collector()
+    result = run_score(ScoreSpec(("synthetic:track1:60",), resamples=50), collector)
+    assert result.model_name.startswith("built-in qdcnn-head (trained on udacity-lake-track")
+    assert result.rows[0].to_dict(result.model_name)["model"] == result.model_name
+    assert f"no --model: model: {result.model_name}" in collector.notes
 
 
 @pytest.mark.slow

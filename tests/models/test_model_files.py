@@ -311,11 +311,18 @@ def test_a_trunk_from_another_network_is_refused_in_one_line(tmp_path: Path) -> 
     pilot = untrained().save(tmp_path / "pilotnet.safetensors")
     trunk = CNNDirectionClassifier("qdcnn-head", trunk_from=source).read_trunk()
     assert set(trunk) == {k for k in hybrid().model_.state_dict() if k.startswith("trunk.")}
+    two = rewrite(source, tmp_path / "two.safetensors", meta={"class_names": ["left", "right"]})
     cases = [
         (("qdcnn-uuconv", {}), source, "its architecture is 'qdcnn-head'"),
         (("qdcnn-head", {"context": 2}), source, "its frames per input (context) is 1"),
         (("qdcnn-head", {"crop": (0.2, 0.9)}), source, "its input is"),
         (("qdcnn-head", {}), pilot, "its architecture is 'pilotnet'"),
+        (
+            ("qdcnn-head", {}),
+            two,
+            "--from: its classes is ['left', 'right'], this network's "
+            "['left', 'straight', 'right']",
+        ),
     ]
     for (arch, params), path, message in cases:
         with pytest.raises(InputError) as err:

@@ -404,11 +404,17 @@ def train_direction_cmd(
     raise typer.Exit(result.exit_code)
 
 
+_BUILTIN_METHOD_HELP = (
+    "Lane method whose built-in lane model decides when no --model is given (default: the "
+    "built-in QDCNN model with torch, image-split-uu without)."
+)
+
+
 def detect_lanes_cmd(
     paths: Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")],
     out_dir: Annotated[Path, typer.Option("--out", help="Folder for overlays and predictions.")],
     model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
-    method: Annotated[str, typer.Option(help="Method when no model is given.")] = "image-split-uu",
+    method: Annotated[str | None, typer.Option(help=_BUILTIN_METHOD_HELP)] = None,
     seed: SeedOpt = 0,
     force: ForceOpt = False,
     wait: WaitOpt = 0.0,
@@ -425,9 +431,11 @@ def detect_lanes_cmd(
 ) -> None:
     """Lane overlays and a left/straight/right decision per frame; resumable.
 
-    Without --model, the built-in model of --method is used: trained once on 300 frames of
-    each synthetic preset (track1, track2, rain) with the lane options, cached, and named
-    in the output. A --model file carries the lane settings it was trained with.
+    Without --model the built-in model decides, named in the output: with torch the
+    built-in QDCNN model shipped with qdcnn (a qdcnn-head hybrid); without torch, or with
+    --method or lane options, the built-in lane model of --method (default image-split-uu),
+    trained once on 300 frames of each synthetic preset with the lane options and cached.
+    A --model file carries the lane settings it was trained with.
     """
     from qdcnn.experiments.detect_lanes import DetectLanesSpec, detect_lanes
 
@@ -454,7 +462,6 @@ def _lanes_table(result: DetectLanesResult) -> Table:
         table.add_row(Path(r.file).name, r.direction, r.status, f"{1e3 * r.seconds:.2f}")
     table.caption = (
         f"{len(result.records)} overlays and predictions.csv in {result.out}; "
-        f"{len(result.failures)} failed; model {result.model.method} trained on "
-        f"{result.model.trained_on}"
+        f"{len(result.failures)} failed; model: {result.model_name}"
     )
     return table

@@ -40,8 +40,12 @@ def run_cmd(
     out_dir: Annotated[Path, typer.Option("--out", help="Output folder.")],
     model: Annotated[Path | None, typer.Option(help="Model file from train-direction.")] = None,
     method: Annotated[
-        str, typer.Option(help="Lane method trained when no model is given.")
-    ] = "image-split-uu",
+        str | None,
+        typer.Option(
+            help="Lane method whose built-in lane model decides when no --model is given "
+            "(default: the built-in QDCNN model with torch, image-split-uu without)."
+        ),
+    ] = None,
     smooth: Annotated[int, typer.Option(help="Majority vote of the decision over K frames.")] = 1,
     video: Annotated[bool, typer.Option(help="Write overlay.mp4 per input.")] = True,
     scheduler: Annotated[
@@ -70,10 +74,11 @@ def run_cmd(
     row that cannot be used), unreadable or failed and a note, gets one error: line, and
     makes the exit status 1; the rest are still processed.
     A re-run with the same arguments skips finished chunks (--force redoes them). The lane
-    options set the pipeline of the built-in model (without --model); a --model file
-    carries the lane settings it was trained with.
+    options set the pipeline of the built-in lane model; without --model, --method or lane
+    options the built-in QDCNN model decides when torch is installed (the output names the
+    model). A --model file carries the lane settings it was trained with.
     """
-    from qdcnn.experiments.run import RunSpec, run
+    from qdcnn.experiments.run import RunSpec, run_with_model
     from qdcnn.runtime.engine import RunOptions
 
     try:
@@ -86,17 +91,17 @@ def run_cmd(
         spec = RunSpec(
             tuple(inputs), out_dir, model, method, options, scheduler, seed, lane.config(seed)
         )
-        result = run(spec, CliReporter(as_json, quiet=quiet))
+        result, name = run_with_model(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
     if as_json:
-        emit(result.to_dict())
+        emit({**result.to_dict(), "model": name})
     else:
-        out.print(_run_table(result))
+        out.print(_run_table(result, name))
     raise typer.Exit(0 if result.ok else 1)
 
 
-def _run_table(result: RunResult) -> Table:
+def _run_table(result: RunResult, model: str) -> Table:
     table = Table(
         "input", "frames", "frames / s", "directions", "first bad frame", title=f"run: {result.out}"
     )
@@ -105,5 +110,5 @@ def _run_table(result: RunResult) -> Table:
         bad = "-" if r.first_bad_frame is None else str(r.first_bad_frame)
         directions = ", ".join(f"{k} {v}" for k, v in r.directions.items())
         table.add_row(r.name, str(r.frames), fps, r.error or directions, bad)
-    table.caption = "frames / s: this run's processing, measured"
+    table.caption = f"model: {model}; frames / s: this run's processing, measured"
     return table

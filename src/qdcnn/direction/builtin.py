@@ -1,6 +1,15 @@
-"""The built-in direction model used when ``detect-lanes`` or ``run`` get no ``--model``.
+"""The built-in direction models: what ``run``, ``detect-lanes`` and ``score`` use without
+``--model``.
 
-It is :data:`DEFAULT_METHOD` trained on :data:`DEFAULT_TRAINING_DATA`, all three
+With torch installed (the ``dnn`` extra) it is the built-in QDCNN model
+(:func:`builtin_qdcnn_model`): a ``qdcnn-head`` hybrid shipped inside the package as
+:data:`QDCNN_FILE`, made by ``benchmarks/train_builtin.py`` (trained on the four
+recordings of ``../shared/data`` and three synthetic presets; its header says what it was
+trained on and its leave-one-recording-out scores). Its SHA-256 is :data:`QDCNN_SHA256`;
+a missing or altered file is an error, never a silent fallback to the lane model.
+
+Without torch, or when a lane ``--method`` or lane options are asked for, it is the
+built-in lane model: :data:`DEFAULT_METHOD` trained on :data:`DEFAULT_TRAINING_DATA`, all three
 synthetic presets (clear track1, hilly track2 with shadows, rain). The method is the one
 of the registry's lane methods that generalised best in
 ``benchmarks/default_model_study.py``: trained on two presets and tested on the third,
@@ -24,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from qdcnn import __version__
+from qdcnn._optional import has_torch
 from qdcnn.config import PipelineConfig
 from qdcnn.direction.features import cache_dir, code_fingerprint
 from qdcnn.direction.methods import DirectionMethod, get_method
@@ -35,10 +45,15 @@ from qdcnn.runtime.reporting import Reporter
 __all__ = [
     "DEFAULT_METHOD",
     "DEFAULT_TRAINING_DATA",
+    "QDCNN_FILE",
+    "QDCNN_SHA256",
+    "builtin_model",
+    "builtin_qdcnn_model",
     "default_direction_model",
     "default_model_path",
     "describe_default_model",
     "direction_model",
+    "uses_builtin_qdcnn",
 ]
 
 #: The lane method of the built-in model (``benchmarks/default_model_study.py``).
@@ -47,6 +62,73 @@ DEFAULT_METHOD = "image-split-uu"
 DEFAULT_TRAINING_DATA = ("synthetic:track1:300", "synthetic:track2:300", "synthetic:rain:300")
 #: The protocol that scores it (that of ``qdcnn evaluate``).
 SCORE_FOLDS, SCORE_GAP = 5, 5
+#: The built-in QDCNN model, shipped with the package (``benchmarks/train_builtin.py``).
+QDCNN_FILE = Path(__file__).with_name("builtin_models") / "qdcnn-head.safetensors"
+#: The SHA-256 of :data:`QDCNN_FILE`: a file with another digest is refused at load.
+QDCNN_SHA256 = "efed43001d42183fd7f33bfab3955ea7e76359205cb9915bb64005905dfa395f"
+
+
+def builtin_qdcnn_model(path: Path | None = None, sha256: str | None = None) -> DirectionModel:
+    """The built-in QDCNN model, read from ``path`` (default :data:`QDCNN_FILE`) after
+    checking its SHA-256 against ``sha256`` (default :data:`QDCNN_SHA256`).
+
+    Raises
+    ------
+    InputError
+        The file is missing, unreadable, or its SHA-256 is not ``sha256`` (altered or
+        truncated): one line naming the file; nothing else is tried instead.
+    """
+    path = QDCNN_FILE if path is None else path
+    sha256 = QDCNN_SHA256 if sha256 is None else sha256
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(
+            path, "the built-in QDCNN model file is missing (reinstall qdcnn, or give --model)"
+        ) from None
+    except OSError as exc:
+        raise InputError(
+            path, f"the built-in QDCNN model file cannot be read ({exc.strerror or exc})"
+        ) from None
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != sha256:
+        raise InputError(
+            path,
+            f"the built-in QDCNN model file is altered: its SHA-256 is {digest[:16]}..., "
+            f"the package's is {sha256[:16]}... (reinstall qdcnn, or give --model)",
+        )
+    return DirectionModel.load(path)
+
+
+def uses_builtin_qdcnn(method: str | None, seed: int, config: PipelineConfig | None) -> bool:
+    """Whether :func:`builtin_model` gives the QDCNN model for these arguments: no lane
+    ``method`` asked for, torch installed and the default lane settings."""
+    default = config is None or config == PipelineConfig(seed=seed)
+    return method is None and default and has_torch()
+
+
+def builtin_model(
+    method: str | None,
+    seed: int,
+    config: PipelineConfig | None = None,
+    reporter: Reporter | None = None,
+) -> tuple[DirectionModel, str]:
+    """The built-in model and one line naming it.
+
+    ``method`` ``None`` with torch installed and the default lane settings (``config``
+    ``None`` or ``PipelineConfig(seed=seed)``): the built-in QDCNN model. Otherwise the
+    built-in lane model of ``method`` (default :data:`DEFAULT_METHOD`) trained with
+    ``config`` (:func:`default_direction_model`).
+    """
+    config = config or PipelineConfig(seed=seed)
+    if uses_builtin_qdcnn(method, seed, config):
+        model = builtin_qdcnn_model()
+        return model, describe_default_model(model)
+    model = default_direction_model(
+        method or DEFAULT_METHOD, seed, data=DEFAULT_TRAINING_DATA, config=config, reporter=reporter
+    )
+    why = "" if method is not None or has_torch() else " (torch is not installed)"
+    return model, f"{describe_default_model(model)}{why}"
 
 
 def default_model_path(
@@ -119,14 +201,16 @@ def default_direction_model(
 
 def direction_model(
     path: Path | None,
-    method: str,
+    method: str | None,
     seed: int,
     config: PipelineConfig,
     note: Callable[[str], None],
     reporter: Reporter | None = None,
-) -> DirectionModel:
-    """The model file at ``path``, or (``path`` None) the built-in model of ``method``
-    trained with ``config`` (its progress told to ``reporter``), named in a ``note``.
+) -> tuple[DirectionModel, str]:
+    """The model file at ``path``, or (``path`` None) the built-in model
+    (:func:`builtin_model`: the QDCNN model, or the lane model of ``method`` trained with
+    ``config``, its progress told to ``reporter``) named in a ``note``; and one line
+    naming the model that decides.
 
     Raises
     ------
@@ -142,14 +226,19 @@ def direction_model(
                 "a model file carries the lane settings it was trained with; give either "
                 "--model or lane options other than the defaults, not both",
             )
-        return DirectionModel.load(path)
-    model = default_direction_model(method, seed, config=config, reporter=reporter)
-    note(f"no --model: the built-in model, {describe_default_model(model)}")
-    return model
+        model = DirectionModel.load(path)
+        return model, f"{model.method} from {path}"
+    model, name = builtin_model(method, seed, config, reporter)
+    note(f"no --model: model: {name}")
+    return model, name
 
 
 def describe_default_model(model: DirectionModel) -> str:
-    """One line: the method, its training data and its protocol score."""
+    """One line: which built-in model, what it was trained on and how it scores."""
+    builtin = model.summary.get("builtin")
+    if isinstance(builtin, dict):
+        names = ", ".join(builtin.get("training", {}).get("recordings", {})) or model.trained_on
+        return f"built-in {model.method} (trained on {names}; sha256 {QDCNN_SHA256[:12]})"
     cv = model.summary.get("cross_validation", {})
     score = (
         f"; {cv['folds']}-fold contiguous CV accuracy {cv['accuracy']:.3f} "
@@ -157,7 +246,7 @@ def describe_default_model(model: DirectionModel) -> str:
         if cv
         else ""
     )
-    return f"{model.method} trained on {model.trained_on}{score}"
+    return f"built-in lane model {model.method} trained on {model.trained_on}{score}"
 
 
 def _train_and_score(

@@ -23,7 +23,13 @@ from qdcnn.batch import Failure, run_batch
 from qdcnn.config import PipelineConfig
 from qdcnn.data.images import encode_image, list_named_images, read_image
 from qdcnn.data.labels import DIRECTIONS
-from qdcnn.direction.builtin import DEFAULT_METHOD, DEFAULT_TRAINING_DATA, direction_model
+from qdcnn.direction.builtin import (
+    DEFAULT_METHOD,
+    DEFAULT_TRAINING_DATA,
+    QDCNN_SHA256,
+    direction_model,
+    uses_builtin_qdcnn,
+)
 from qdcnn.direction.methods import get_method
 from qdcnn.direction.model import DirectionModel
 from qdcnn.errors import InputError, ParameterError
@@ -53,14 +59,15 @@ class DetectLanesSpec:
     paths: tuple[Path, ...]
     out: Path
     model: Path | None = None
-    method: str = DEFAULT_METHOD
+    method: str | None = None
     seed: int = 0
     force: bool = False
     wait: float = 0.0
     config: PipelineConfig | None = None
 
     def __post_init__(self) -> None:
-        get_method(self.method)
+        if self.method is not None:
+            get_method(self.method)
         check_seed("seed", self.seed)
         check_bool("force", self.force)
         check_float("wait", self.wait, 0.0, 86_400.0)
@@ -77,9 +84,13 @@ class DetectLanesSpec:
         from qdcnn.outputs import file_identity
 
         model = None if self.model is None else file_identity(self.model, content_hash=True)
-        default = None
+        default: list[Any] | None = None
         if self.model is None:
-            default = [self.method, *DEFAULT_TRAINING_DATA, self.pipeline.to_dict()]
+            if uses_builtin_qdcnn(self.method, self.seed, self.config):
+                default = ["builtin-qdcnn", QDCNN_SHA256]
+            else:
+                method = self.method or DEFAULT_METHOD
+                default = [method, *DEFAULT_TRAINING_DATA, self.pipeline.to_dict()]
         return {"model": model, "default_model": default, "seed": self.seed}
 
 
@@ -118,6 +129,8 @@ class DetectLanesResult:
     records: list[LaneRecord] = field(default_factory=list)
     failures: list[Failure] = field(default_factory=list)
     skipped: list[Path] = field(default_factory=list)
+    #: One line naming the model that decided (the built-in one described, or the file).
+    model_name: str = ""
 
     @property
     def exit_code(self) -> int:
@@ -126,6 +139,7 @@ class DetectLanesResult:
     def to_dict(self) -> dict[str, Any]:
         return {
             "summary": True,
+            "model": self.model_name,
             "method": self.model.method,
             "trained_on": self.model.trained_on,
             "model_summary": self.model.summary,
@@ -146,10 +160,10 @@ def detect_lanes(spec: DetectLanesSpec, reporter: Reporter | None = None) -> Det
         raise InputError(", ".join(map(str, spec.paths)), "no image files found")
     if spec.out.exists() and not spec.out.is_dir():
         raise InputError(spec.out, "exists and is not a folder (--out names a folder for overlays)")
-    model = direction_model(
+    model, name = direction_model(
         spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
     )
-    result = DetectLanesResult(model, spec.out, skipped=listing.skipped)
+    result = DetectLanesResult(model, spec.out, skipped=listing.skipped, model_name=name)
     note_shared_stems(listing.images, report)
     with (
         ResumableBatch(spec.out, spec.settings(), force=spec.force, wait=spec.wait) as batch,

@@ -266,12 +266,19 @@ def _train_key(
 
 
 def _concatenate(parts: list[NDArray[Any]], m: DirectionMethod) -> NDArray[Any]:
+    """The training recordings' inputs in one array; frames prepared for a network input
+    (:class:`~qdcnn.models.preprocess.PreparedFrames`, all for the same one) stay marked as
+    such: a plain array of them would be cropped and resized again as if raw frames."""
     shapes = {p.shape[1:] for p in parts}
     if len(shapes) > 1:
         raise InputError(
             m.name, f"training recordings have inputs of different sizes {sorted(shapes)}"
         )
-    return np.concatenate(parts)
+    joined = np.concatenate(parts)
+    spec = getattr(parts[0], "spec", None)
+    if spec is not None and all(getattr(p, "spec", None) == spec for p in parts):
+        return type(parts[0])(joined, spec)
+    return joined
 
 
 def _scored(

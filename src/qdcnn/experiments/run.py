@@ -18,7 +18,7 @@ from typing import Any
 from qdcnn._validation import check_seed
 from qdcnn.config import PipelineConfig
 from qdcnn.data.frames import load_frameset, parse_data_spec
-from qdcnn.direction.builtin import DEFAULT_METHOD, direction_model
+from qdcnn.direction.builtin import direction_model
 from qdcnn.direction.methods import get_method
 from qdcnn.errors import ParameterError
 from qdcnn.outputs import refuse_output_in_inputs
@@ -32,7 +32,7 @@ from qdcnn.runtime.engine import (
 )
 from qdcnn.runtime.reporting import Failure, Reporter
 
-__all__ = ["RunSpec", "run"]
+__all__ = ["RunSpec", "run", "run_with_model"]
 
 _SPEC_KINDS = ("udacity:", "carla:", "synthetic:")
 
@@ -48,10 +48,12 @@ class RunSpec:
     out : Path
         Output folder (``<name>/frames.csv``, ``timings.csv``, ``overlay.mp4``, ``summary.json``).
     model : Path or None
-        A direction model file (``train-direction``); ``None``: the built-in model of
-        ``method`` (:func:`~qdcnn.direction.builtin.default_direction_model`).
-    method : str
-        The registered lane method of the built-in model, used when no model is given.
+        A direction model file (``train-direction``); ``None``: the built-in model
+        (:func:`~qdcnn.direction.builtin.builtin_model`).
+    method : str or None
+        A registered lane method whose built-in lane model decides when no model is
+        given; ``None``: the built-in QDCNN model (the lane model of ``image-split-uu``
+        without torch or with lane settings other than the defaults).
     options : RunOptions
         Chunking, ``smooth`` majority vote, overlay, ``force``, lock wait.
     scheduler : str or None
@@ -66,14 +68,15 @@ class RunSpec:
     inputs: tuple[str, ...]
     out: Path
     model: Path | None = None
-    method: str = DEFAULT_METHOD
+    method: str | None = None
     options: RunOptions = field(default_factory=RunOptions)
     scheduler: str | None = None
     seed: int = 0
     config: PipelineConfig | None = None
 
     def __post_init__(self) -> None:
-        get_method(self.method)
+        if self.method is not None:
+            get_method(self.method)
         check_seed("seed", self.seed)
         if self.config is not None and not isinstance(self.config, PipelineConfig):
             raise ParameterError("config", type(self.config).__name__, "a PipelineConfig")
@@ -86,6 +89,11 @@ class RunSpec:
 
 def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     """Process every input of ``spec``; each input's result is reported as it finishes."""
+    return run_with_model(spec, reporter)[0]
+
+
+def run_with_model(spec: RunSpec, reporter: Reporter | None = None) -> tuple[RunResult, str]:
+    """:func:`run`, and one line naming the model that decided."""
     from qdcnn.direction.processor import LaneDirectionProcessor
     from qdcnn.runtime.scheduler import Executor
 
@@ -93,7 +101,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
     inputs = [_input(item, spec) for item in spec.inputs]
     resolve_inputs(inputs)  # a mistyped path stops the run before the model is loaded
     refuse_output_in_inputs(spec.out, [_folder_of(item) for item in spec.inputs])
-    model = direction_model(
+    model, name = direction_model(
         spec.model, spec.method, spec.seed, spec.pipeline, report.note, reporter=report
     )
     processor = LaneDirectionProcessor(model, seed=spec.seed)
@@ -112,7 +120,7 @@ def run(spec: RunSpec, reporter: Reporter | None = None) -> RunResult:
         report.result(item.to_dict())
         for failure in _failures(item):
             report.failure(failure)
-    return result
+    return result, name
 
 
 #: Bad frames of one input told one line each; the rest in one line (all are in frames.csv).

@@ -29,7 +29,7 @@ from qdcnn.batch import Failure
 from qdcnn.config import LabelConfig
 from qdcnn.data.frames import FrameSet, load_frameset, parse_data_spec, stack_images
 from qdcnn.data.labels import DirectionLabels
-from qdcnn.direction.builtin import DEFAULT_METHOD, default_direction_model, describe_default_model
+from qdcnn.direction.builtin import builtin_model
 from qdcnn.direction.model import DirectionModel
 from qdcnn.direction.scores import (
     DEFAULT_MIN_BLOCK,
@@ -55,7 +55,8 @@ class ScoreSpec:
     data : tuple of str
         Dataset specs (``udacity:PATH``, ``carla:PATH``, ``synthetic:PRESET[:N]``).
     model : path or None
-        A model file from ``train-direction``; ``None``: the built-in lane model.
+        A model file from ``train-direction``; ``None``: the built-in model (the QDCNN
+        model with torch, the lane model without: :func:`~qdcnn.direction.builtin.builtin_model`).
     seed : int
         Seed of the synthetic drives, of the built-in model and of the bootstrap.
     resamples : int
@@ -226,9 +227,8 @@ def _load_model(spec: ScoreSpec, report: Reporter) -> tuple[DirectionModel, str]
     """The model and how results name it: its file, or the built-in model described."""
     if spec.model is not None:
         return DirectionModel.load(spec.model), str(spec.model)
-    model = default_direction_model(DEFAULT_METHOD, spec.seed)
-    name = f"built-in lane model ({describe_default_model(model)})"
-    report.note(f"no --model: the {name}")
+    model, name = builtin_model(None, spec.seed)
+    report.note(f"no --model: model: {name}")
     return model, name
 
 

@@ -1,0 +1,363 @@
+"""Train the built-in QDCNN model and score its recipe leave-one-recording-out.
+
+The recipe (seed 0, CPU, 2 torch threads)
+------------------------------------------
+* Method: ``qdcnn-head`` (PilotNet trunk, dressed 4-qubit quantum head) with the hybrid
+  trainer's recipe (``HYBRID_RECIPE``: class-balanced loss, epochs selected by validation
+  balanced accuracy, restarts when the validation predictions are one class) and the
+  two-stage transfer training (``--transfer``: PilotNet first, then the head on the frozen
+  trunk, then fine-tuning at a tenth of the rate), :data:`EPOCHS` classical epochs, the
+  existing augmentation (flips, brightness, shadows).
+* Data: the four recordings of ``../shared/data`` and three synthetic presets. Consecutive
+  frames of a recording are near duplicates, so each recording is thinned to one frame in
+  ``stride`` (:data:`RECORDINGS`: lake 1 in 13, mountain 1 in 3, dark mountain 1 in 15,
+  real sample 1 in 3), about 400 frames each, plus 150 frames of each preset, ~2,000 in
+  all; with :data:`EPOCHS` = 15 classical epochs (and 3 + 3 of the later stages) one
+  training costs about 10 minutes of CPU on 2 threads. Labels are made on the whole
+  recording (smoothing as ``qdcnn evaluate`` does) and then thinned. The simulator tracks
+  keep their own unit and default threshold; the real dashcam sample is
+  ``@unit=rad,threshold=p33`` (the straight class = the 33 % smallest |smoothed steering|
+  of all the TRAINING frames, simulator ones included, as the cross-recording protocol
+  resolves it), so it gives three classes.
+* Frames are cropped and resized to the network input per recording (the real sample is
+  640x480, the simulator 320x160), as ``qdcnn evaluate`` does for a CNN.
+
+Leave-one-recording-out
+-----------------------
+For each left-out recording (:data:`LEAVE_OUT`, in that order) the same recipe is trained
+on the other recordings (thinned as above) plus the synthetic presets, and scored on the
+left-out recording with :func:`qdcnn.experiments.evaluate_cross.cross_evaluate` (the
+``qdcnn evaluate --train/--test`` protocol: balanced accuracy with 95 % block-bootstrap
+intervals). The left-out recording is scored on every frame when it has at most
+:data:`TEST_ALL_UP_TO` frames, else on one frame in :data:`TEST_STRIDE`. The two classical
+references of issue 19, ``hog-logreg`` (frames resized to 320x160 so recordings of both
+sizes stack) and ``lines-logreg`` (lane features), are trained on the same frames and
+scored on the same test frames.
+
+Outputs: the model (``src/qdcnn/direction/builtin_models/qdcnn-head.safetensors``, header
+``summary.builtin`` = what it was trained on and the leave-one-out scores) and
+``docs/results/builtin-model.json``; both are rewritten after every left-out recording, so
+a stopped run keeps what finished. Then put the printed SHA-256 into
+``qdcnn.direction.builtin.BUILTIN_SHA256``.
+
+    python benchmarks/train_builtin.py --data-root ../shared/data
+    python benchmarks/train_builtin.py --skip-final --leave-out real-dashcam-sample
+        # the saved model kept: (re)score these left-out recordings, update header and JSON
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+MODEL_PATH = REPO / "src" / "qdcnn" / "direction" / "builtin_models" / "qdcnn-head.safetensors"
+RESULTS_PATH = REPO / "docs" / "results" / "builtin-model.json"
+METHOD = "qdcnn-head"
+REFERENCES = ("hog-logreg", "lines-logreg")
+SEED = 0
+THREADS = 2
+EPOCHS = 15
+#: recording folder -> (spec suffix, training stride): about 400 frames of each.
+RECORDINGS: dict[str, tuple[str, int]] = {
+    "udacity-lake-track": ("", 13),
+    "udacity-mountain-track": ("", 3),
+    "udacity-dark-mountain-track": ("", 15),
+    "real-dashcam-sample": ("@unit=rad,threshold=p33", 3),
+}
+SYNTHETIC = ("synthetic:track1:150", "synthetic:track2:150", "synthetic:rain:150")
+LEAVE_OUT = (
+    "udacity-lake-track",
+    "real-dashcam-sample",
+    "udacity-mountain-track",
+    "udacity-dark-mountain-track",
+)
+TEST_ALL_UP_TO, TEST_STRIDE = 1500, 4
+HOG_SIZE = (320, 160)
+
+
+@dataclass
+class Part:
+    """One recording's thinned frames: their labels and the inputs each method reads."""
+
+    name: str
+    frames: Any  # FrameSet (full)
+    index: np.ndarray
+    labels: np.ndarray
+
+
+def load_sets(root: Path) -> dict[str, Any]:
+    """Every recording and synthetic preset as a FrameSet, by name."""
+    from qdcnn.data.frames import load_frameset
+
+    specs = [f"udacity:{root / name}{suffix}" for name, (suffix, _) in RECORDINGS.items()]
+    sets = [load_frameset(s, seed=SEED) for s in (*specs, *SYNTHETIC)]
+    return {fs.name: fs for fs in sets}
+
+
+def thin(fs: Any, stride: int) -> np.ndarray:
+    return np.arange(0, len(fs), stride)
+
+
+def make_parts(sets: dict[str, Any], names: list[str], test: str | None) -> list[Part]:
+    """The training parts (``names``) and, last, the test part, labelled as the protocol
+    says: a percentile threshold from the training recordings only."""
+    from qdcnn.config import LabelConfig
+
+    train_sets = [sets[n] for n in names]
+    parts = []
+    for n in names:
+        stride = RECORDINGS[n][1] if n in RECORDINGS else 1
+        y = sets[n].labels(LabelConfig(), train=train_sets)
+        idx = thin(sets[n], stride)
+        parts.append(Part(n, sets[n], idx, y[idx]))
+    if test is not None:
+        fs = sets[test]
+        stride = 1 if len(fs) <= TEST_ALL_UP_TO else TEST_STRIDE
+        idx = thin(fs, stride)
+        parts.append(Part(test, fs, idx, fs.labels(LabelConfig(), train=train_sets)[idx]))
+    return parts
+
+
+def inputs(part: Part, method: str) -> np.ndarray:
+    """``part``'s frames as ``method`` reads them (prepared network input, resized frames
+    for HOG, lane features for lines-logreg)."""
+    import cv2
+
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.features import compute_features
+    from qdcnn.direction.methods import get_method
+    from qdcnn.models.networks import input_spec
+    from qdcnn.models.preprocess import PreparedFrames, prepare_frames
+
+    if method == "lines-logreg":
+        sub = _subset(part.frames, part.index)
+        table = compute_features(sub, PipelineConfig(seed=SEED), ("image-split",))
+        return np.asarray(table.features["image-split"])
+    images = [part.frames.image(int(i)) for i in part.index]
+    if method == "hog-logreg":
+        return np.stack([cv2.resize(im, HOG_SIZE, interpolation=cv2.INTER_AREA) for im in images])
+    estimator = get_method(METHOD).estimator(PipelineConfig(seed=SEED), training_options())[0]
+    spec = input_spec(estimator.arch, estimator.crop)
+    prepared = np.concatenate([prepare_frames(im[None], spec) for im in images])
+    return PreparedFrames(prepared, spec)
+
+
+def _subset(fs: Any, index: np.ndarray) -> Any:
+    """``fs`` thinned to ``index`` (frames read lazily as before)."""
+    return replace(
+        fs,
+        steering=fs.steering[index],
+        timestamps=None if fs.timestamps is None else fs.timestamps[index],
+        sources=[fs.sources[i] for i in index],
+        images=None if fs.images is None else [fs.images[i] for i in index],
+        paths=None if fs.paths is None else [fs.paths[i] for i in index],
+        positions=None,
+        problems=[],
+    )
+
+
+def training_options() -> Any:
+    from qdcnn.direction.methods import TrainingOptions
+
+    epochs = int(os.environ.get("BUILTIN_EPOCHS", EPOCHS))  # a quick try: BUILTIN_EPOCHS=1
+    return TrainingOptions(epochs=epochs, threads=THREADS, progress=False, transfer=True)
+
+
+def stacked(parts: list[Part], method: str) -> tuple[np.ndarray, np.ndarray]:
+    from qdcnn.models.preprocess import PreparedFrames
+
+    xs = [inputs(p, method) for p in parts]
+    x = np.concatenate(xs)
+    if isinstance(xs[0], PreparedFrames):
+        x = PreparedFrames(x, xs[0].spec)
+    return x, np.concatenate([p.labels for p in parts])
+
+
+def train_final(sets: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+    """The built-in model: the recipe on every recording and preset."""
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.model import train_direction_model
+
+    names = list(sets)
+    parts = make_parts(sets, names, None)
+    x, y = stacked(parts, METHOD)
+    t0, c0 = time.perf_counter(), time.process_time()
+    model = train_direction_model(
+        METHOD,
+        x,
+        y,
+        PipelineConfig(seed=SEED),
+        " + ".join(sets[n].spec for n in names),
+        options=training_options(),
+    )
+    info = {
+        "recordings": {
+            p.name: {
+                "spec": p.frames.spec,
+                "frames": int(p.index.size),
+                "of": len(p.frames),
+                "stride": int(p.index[1] - p.index[0]) if p.index.size > 1 else 1,
+                "class_counts": np.bincount(p.labels, minlength=3).tolist(),
+            }
+            for p in parts
+        },
+        "frames": int(y.size),
+        "wall_s": round(time.perf_counter() - t0, 1),
+        "cpu_s": round(time.process_time() - c0, 1),
+    }
+    return model, info
+
+
+def leave_one_out(sets: dict[str, Any], test: str) -> list[dict[str, Any]]:
+    """The recipe and the references trained without ``test``, scored on it."""
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.methods import get_method
+    from qdcnn.experiments.evaluate import EvaluationSpec
+    from qdcnn.experiments.evaluate_cross import Recording, cross_evaluate
+
+    names = [n for n in sets if n != test]
+    parts = make_parts(sets, names, test)
+    spec = EvaluationSpec(
+        "",
+        METHOD,
+        PipelineConfig(seed=SEED),
+        training=training_options(),
+        train=tuple(sets[n].spec for n in names),
+        test=(sets[test].spec,),
+    )
+    out = []
+    for method in (METHOD, *REFERENCES):
+        recs = [Recording(p.name, *_one(p, method)) for p in parts]
+        t0, c0 = time.perf_counter(), time.process_time()
+        (res,) = cross_evaluate(get_method(method), recs[:-1], recs[-1:], spec)
+        row = {k: v for k, v in res.to_dict().items() if k not in ("predictions", "test_labels")}
+        row["predicted_counts"] = np.bincount(res.predictions[0], minlength=3).tolist()
+        row["test_frames"] = {"of": len(parts[-1].frames), "stride": _stride(parts[-1])}
+        row["wall_s"] = round(time.perf_counter() - t0, 1)
+        row["cpu_s"] = round(time.process_time() - c0, 1)
+        print(
+            f"left out {test}: {method} BA {res.balanced_accuracy:.3f} "
+            f"{res.balanced_accuracy_ci} ({row['wall_s']} s)",
+            flush=True,
+        )
+        out.append(row)
+    return out
+
+
+def _one(part: Part, method: str) -> tuple[np.ndarray, np.ndarray]:
+    x = inputs(part, method)
+    return x, part.labels
+
+
+def _stride(part: Part) -> int:
+    return int(part.index[1] - part.index[0]) if part.index.size > 1 else 1
+
+
+def commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True
+        )
+        return out.stdout.strip() or "unknown"
+    except OSError:
+        return "unknown"
+
+
+def save(model: Any, info: dict[str, Any], loo: dict[str, list[dict[str, Any]]]) -> None:
+    """The model (if any) with its header, and the results JSON."""
+    from qdcnn._fileio import atomic_write_bytes
+
+    summary = {
+        "recipe": __doc__.split("Leave-one-recording-out")[0].strip() if __doc__ else "",
+        "seed": SEED,
+        "commit": commit(),
+        "training": info,
+        "leave_one_out": {
+            test: {
+                r["method"]: {
+                    "balanced_accuracy": r["balanced_accuracy"],
+                    "balanced_accuracy_ci": r["balanced_accuracy_ci"],
+                    "n": r["n"],
+                    "seconds": r["wall_s"],
+                }
+                for r in rows
+            }
+            for test, rows in loo.items()
+        },
+    }
+    result: dict[str, Any] = {"builtin": summary, "leave_one_out_rows": loo}
+    if model is not None:
+        model.summary["builtin"] = summary
+        path = model.save(MODEL_PATH)
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        result["model"] = {
+            "path": str(path.relative_to(REPO)),
+            "sha256": digest,
+            "bytes": path.stat().st_size,
+        }
+        print(f"model {path} ({path.stat().st_size} bytes) sha256 {digest}", flush=True)
+    text = json.dumps(result, indent=1, default=_plain) + "\n"
+    atomic_write_bytes(RESULTS_PATH, text.encode())
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(type(value).__name__)
+
+
+def _saved_rows() -> dict[str, list[dict[str, Any]]]:
+    """The leave-one-out rows of the results JSON, if any."""
+    if not RESULTS_PATH.is_file():
+        return {}
+    rows: dict[str, list[dict[str, Any]]] = json.loads(RESULTS_PATH.read_text())[
+        "leave_one_out_rows"
+    ]
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--data-root", type=Path, default=REPO.parent / "shared" / "data")
+    parser.add_argument("--leave-out", default=",".join(LEAVE_OUT))
+    parser.add_argument(
+        "--skip-final",
+        action="store_true",
+        help="keep the saved model (add the scores to its header and to the JSON)",
+    )
+    args = parser.parse_args()
+    import torch
+
+    from qdcnn.direction.model import DirectionModel
+
+    torch.set_num_threads(THREADS)
+    os.environ.setdefault("OMP_NUM_THREADS", str(THREADS))
+    sets = load_sets(args.data_root)
+    loo: dict[str, list[dict[str, Any]]] = {}
+    if args.skip_final:  # the saved model, its header updated with the scores
+        model = DirectionModel.load(MODEL_PATH)
+        info = model.summary["builtin"]["training"]
+        loo = {k: v for k, v in _saved_rows().items() if k not in args.leave_out.split(",")}
+    else:
+        model, info = train_final(sets)
+        print(f"trained on {info['frames']} frames in {info['wall_s']} s", flush=True)
+        save(model, info, loo)
+    for test in filter(None, args.leave_out.split(",")):
+        loo[test] = leave_one_out(sets, test)
+        save(model, info, loo)
+
+
+if __name__ == "__main__":
+    main()
