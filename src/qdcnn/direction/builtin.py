@@ -65,7 +65,7 @@ SCORE_FOLDS, SCORE_GAP = 5, 5
 #: The built-in QDCNN model, shipped with the package (``benchmarks/train_builtin.py``).
 QDCNN_FILE = Path(__file__).with_name("builtin_models") / "qdcnn-head.safetensors"
 #: The SHA-256 of :data:`QDCNN_FILE`: a file with another digest is refused at load.
-QDCNN_SHA256 = "efed43001d42183fd7f33bfab3955ea7e76359205cb9915bb64005905dfa395f"
+QDCNN_SHA256 = "b8866df880e021d200b528f499259cc8f81f52464ea0ab2c7eaded3622b40908"
 
 
 def builtin_qdcnn_model(path: Path | None = None, sha256: str | None = None) -> DirectionModel:
