@@ -23,7 +23,8 @@ def test_a_batch_gives_every_frame_its_own_outcome(method: str) -> None:
     alone = [processor.process(image, i) for image, i in zip(images, indices, strict=True)]
     batch = processor.process_batch(images, indices)
     assert all(_same(a, b) for a, b in zip(alone, batch, strict=True))
-    assert len({a.direction for a in alone}) > 1  # the frames are not all decided alike
+    # the frames' outcomes differ, so a batch that mixed them up would show
+    assert len({a.probabilities for a in alone}) > len(alone) // 2
     first, *_ = batch
     assert not isinstance(first, QdcnnError)
     np.testing.assert_array_equal(first.drawing[0], alone[0].drawing[0])  # the segments
