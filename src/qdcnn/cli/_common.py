@@ -62,6 +62,13 @@ GapOpt = Annotated[
     int, typer.Option(help="Frames left out of training on each side of a test block.")
 ]
 WaitOpt = Annotated[float, typer.Option(help="Seconds to wait for another run's lock.")]
+BuiltinMethodOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Lane method whose built-in lane model decides when no --model is given "
+        "(default: the built-in QDCNN model with torch, image-split-uu without)."
+    ),
+]
 InnerFoldsOpt = Annotated[
     int, typer.Option(help="Inner contiguous folds choosing hyperparameters (0: none).")
 ]

@@ -13,6 +13,7 @@ import typer
 from rich.table import Table
 
 from qdcnn.cli._common import (
+    BuiltinMethodOpt,
     CacheOpt,
     CliReporter,
     EdgesOpt,
@@ -404,17 +405,11 @@ def train_direction_cmd(
     raise typer.Exit(result.exit_code)
 
 
-_BUILTIN_METHOD_HELP = (
-    "Lane method whose built-in lane model decides when no --model is given (default: the "
-    "built-in QDCNN model with torch, image-split-uu without)."
-)
-
-
 def detect_lanes_cmd(
     paths: Annotated[list[Path], typer.Argument(help="Image files and/or folders of images.")],
     out_dir: Annotated[Path, typer.Option("--out", help="Folder for overlays and predictions.")],
     model: Annotated[Path | None, typer.Option(help="Model from train-direction.")] = None,
-    method: Annotated[str | None, typer.Option(help=_BUILTIN_METHOD_HELP)] = None,
+    method: BuiltinMethodOpt = None,
     seed: SeedOpt = 0,
     force: ForceOpt = False,
     wait: WaitOpt = 0.0,

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from qdcnn.cli._common import (
+    BuiltinMethodOpt,
     CliReporter,
     EdgesOpt,
     FeaturesOpt,
@@ -39,13 +40,7 @@ def run_cmd(
     ],
     out_dir: Annotated[Path, typer.Option("--out", help="Output folder.")],
     model: Annotated[Path | None, typer.Option(help="Model file from train-direction.")] = None,
-    method: Annotated[
-        str | None,
-        typer.Option(
-            help="Lane method whose built-in lane model decides when no --model is given "
-            "(default: the built-in QDCNN model with torch, image-split-uu without)."
-        ),
-    ] = None,
+    method: BuiltinMethodOpt = None,
     smooth: Annotated[int, typer.Option(help="Majority vote of the decision over K frames.")] = 1,
     video: Annotated[bool, typer.Option(help="Write overlay.mp4 per input.")] = True,
     scheduler: Annotated[
