@@ -11,7 +11,12 @@ torch = pytest.importorskip("torch")
 cv2 = pytest.importorskip("cv2")
 
 from qdcnn.config import PipelineConfig  # noqa: E402
-from qdcnn.direction.methods import TrainingOptions, get_method, with_head  # noqa: E402
+from qdcnn.direction.methods import (  # noqa: E402
+    TrainingOptions,
+    get_method,
+    staged_note,
+    with_head,
+)
 from qdcnn.direction.model import DirectionModel, train_direction_model  # noqa: E402
 from qdcnn.errors import ParameterError  # noqa: E402
 from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
@@ -164,8 +169,19 @@ def test_head_ablations_are_methods_derived_from_the_table() -> None:
 
 
 def test_transfer_and_from_are_for_hybrids_only(tmp_path: Path) -> None:
+    pilotnet, lines = get_method("dnn-pilotnet"), get_method("lines-logreg")
+    hybrid = get_method("qdcnn-head-noent")
     for options in (TrainingOptions(transfer=True), TrainingOptions(from_model=tmp_path)):
-        with pytest.raises(ParameterError, match="dnn-pilotnet|pilotnet is not a hybrid"):
-            get_method("dnn-pilotnet").estimator(PipelineConfig(), options)
-        estimator = get_method("qdcnn-head-noent").estimator(PipelineConfig(), options)[0]
+        what = "--transfer" if options.transfer else "--from"
+        estimator = hybrid.estimator(PipelineConfig(), options)[0]
         assert estimator.transfer == options.transfer
+        plain = pilotnet.estimator(PipelineConfig(), options)[0]
+        assert not plain.transfer and plain.trunk_from is None
+        note = staged_note([pilotnet, hybrid, lines], options)
+        assert note == f"{what} applies to the hybrids; dnn-pilotnet, lines-logreg train as usual"
+        assert staged_note([hybrid], options) is None
+        with pytest.raises(ParameterError, match=f"{what}=.*unset: dnn-pilotnet is not a hybrid"):
+            staged_note([pilotnet], options)
+        with pytest.raises(ParameterError, match="none of dnn-pilotnet, lines-logreg is a hybrid"):
+            staged_note([pilotnet, lines], options)
+    assert staged_note([pilotnet], TrainingOptions()) is None

@@ -338,9 +338,6 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
         if hybrid:
             from_model = None if options.from_model is None else str(options.from_model)
             staged = {**HYBRID_RECIPE, "transfer": options.transfer, "trunk_from": from_model}
-        elif options.transfer or options.from_model is not None:
-            what = "--transfer" if options.transfer else "--from"
-            raise ParameterError(what, "set", f"unset: {arch} is not a hybrid network")
         estimator = CNNDirectionClassifier(
             arch,
             epochs=options.epochs,
@@ -355,6 +352,22 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
         return estimator, {}
 
     return build
+
+
+def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
+    """What ``--transfer`` / ``--from`` do to ``methods``: they apply to the hybrids, the
+    other methods train as usual (a note says which). Without a hybrid they are refused.
+    """
+    if not (options.transfer or options.from_model is not None):
+        return None
+    what = "--transfer" if options.transfer else "--from"
+    others = [m.name for m in methods if m.kind not in HYBRID_KINDS]
+    if len(others) == len(methods):
+        said = f"{others[0]} is not" if len(others) == 1 else f"none of {', '.join(others)} is"
+        raise ParameterError(what, "set", f"unset: {said} a hybrid method")
+    if not others:
+        return None
+    return f"{what} applies to the hybrids; {', '.join(others)} train as usual"
 
 
 def with_head(names: str, head: str) -> str:

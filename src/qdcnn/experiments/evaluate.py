@@ -38,6 +38,7 @@ from qdcnn.direction.methods import (
     check_inner_search,
     get_method,
     select_methods,
+    staged_note,
 )
 from qdcnn.direction.protocol import (
     RESAMPLES,
@@ -410,6 +411,8 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
         has_torch=has_torch() if spec.has_torch is None else spec.has_torch,
         has_gpu=has_gpu() if spec.has_gpu is None else spec.has_gpu,
     )
+    staged = staged_note(methods, spec.training)
+    notes += [staged] if staged else []
     for note in notes:
         report.note(note)
     if spec.recording_splits():
