@@ -180,6 +180,10 @@ def test_transfer_and_from_are_for_hybrids_only(tmp_path: Path) -> None:
         note = staged_note([pilotnet, hybrid, lines], options)
         assert note == f"{what} applies to the hybrids; dnn-pilotnet, lines-logreg train as usual"
         assert staged_note([hybrid], options) is None
+        assert (
+            staged_note([hybrid, pilotnet], options)
+            == f"{what} applies to the hybrids; dnn-pilotnet trains as usual"
+        )
         with pytest.raises(ParameterError, match=f"{what}=.*unset: dnn-pilotnet is not a hybrid"):
             staged_note([pilotnet], options)
         with pytest.raises(ParameterError, match="none of dnn-pilotnet, lines-logreg is a hybrid"):

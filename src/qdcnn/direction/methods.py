@@ -367,7 +367,8 @@ def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) ->
         raise ParameterError(what, "set", f"unset: {said} a hybrid method")
     if not others:
         return None
-    return f"{what} applies to the hybrids; {', '.join(others)} train as usual"
+    verb = "trains" if len(others) == 1 else "train"
+    return f"{what} applies to the hybrids; {', '.join(others)} {verb} as usual"
 
 
 def with_head(names: str, head: str) -> str:
