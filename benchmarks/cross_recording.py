@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -69,8 +70,18 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def lighten(item: dict[str, Any]) -> dict[str, Any]:
+    """``item`` without its per-frame lists."""
+    return {k: v for k, v in item.items() if k not in BULKY}
+
+
 def run_one(
-    name: str, args: list[str], out: Path, cache: Path, common: list[str]
+    name: str,
+    args: list[str],
+    out: Path,
+    cache: Path,
+    common: list[str],
+    light: Callable[[dict[str, Any]], dict[str, Any]] = lighten,
 ) -> tuple[float, float]:
     """Run one evaluation, keep its JSON lines (lighter); its wall and CPU seconds.
 
@@ -85,8 +96,7 @@ def run_one(
     done = subprocess.run(command, env=env, stdout=subprocess.PIPE, text=True, check=False)
     seconds, cpu = time.perf_counter() - start, _children_cpu() - cpu
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
-    light = [{k: v for k, v in item.items() if k not in BULKY} for item in lines]
-    text = "".join(json.dumps(item) + "\n" for item in light)
+    text = "".join(json.dumps(light(item)) + "\n" for item in lines)
     (out / f"{name}.jsonl").write_text(text, encoding="utf-8")
     if done.returncode != 0:
         print(f"{name}: exit {done.returncode}", file=sys.stderr)

@@ -83,6 +83,22 @@ def test_summarise_pools_over_test_frames() -> None:
     assert r.per_class["left"]["recall"] == 0.5
 
 
+def test_summarise_notes_each_collapsed_fold_and_seed() -> None:
+    y = np.repeat([0, 1, 1, 2], 10)  # fold 1 holds left and straight, fold 2 straight and right
+    splits = list(ContiguousKFold(2).split(y))
+    one_class = CrossValidation(splits, [np.ones(20, int), y[20:]], [{}, {}], seconds=0.1)
+    right = CrossValidation(splits, [y[:20], np.full(20, 2)], [{}, {}], seconds=0.1)
+    r = summarise("m", "toy", y, [one_class, right], seeds=(3, 4))
+    assert [n for n in r.notes if n.startswith("collapsed")] == [
+        "collapsed: 'straight' for 100% of fold 1's test frames (seed 3), which hold two "
+        "classes or more",
+        "collapsed: 'right' for 100% of fold 2's test frames (seed 4), which hold two classes "
+        "or more",
+    ]
+    honest = CrossValidation(splits, [y[:20], y[20:]], [{}, {}], seconds=0.1)
+    assert not [n for n in summarise("m", "toy", y, honest).notes if "collapsed" in n]
+
+
 class _Recorder(ClassifierMixin, BaseEstimator):
     """Predicts the majority class; records the rows it was trained on (for the gap test)."""
 

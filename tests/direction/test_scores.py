@@ -16,7 +16,9 @@ from qdcnn.direction.scores import (
     Interval,
     block_bootstrap,
     block_length,
+    collapsed,
     format_with_interval,
+    one_answer_share,
     paired_difference,
     score,
 )
@@ -27,6 +29,28 @@ Draw = Callable[[np.random.Generator], tuple[Labels, Labels]]
 
 
 # --- metrics: known answers -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("truth", "pred", "share", "mixed", "collapse"),
+    [
+        ([0] * 50 + [1] * 50, [1] * 96 + [0] * 4, 0.96, True, True),
+        ([0] * 50 + [1] * 50, [1] * 95 + [0] * 5, 0.95, True, False),  # the rule says "more than"
+        ([1] * 91 + [2] * 9, [1] * 100, 1.0, False, False),  # right is under 10 % of the block
+        ([1] * 90 + [2] * 10, [1] * 100, 1.0, True, True),
+        ([0] * 40 + [1] * 20 + [2] * 40, [0, 1, 2] * 33 + [0], 0.34, True, False),
+    ],
+)
+def test_collapse_rule_known_answers(
+    truth: list[int], pred: list[int], share: float, mixed: bool, collapse: bool
+) -> None:
+    assert one_answer_share(truth, pred) == (pytest.approx(share), mixed)
+    assert collapsed(truth, pred) is collapse
+
+
+def test_collapse_rule_refuses_mismatched_lengths() -> None:
+    with pytest.raises(ParameterError, match=r"y_pred='shape \(1,\)' is invalid: shape \(2,\)"):
+        one_answer_share([0, 1], [1])
 
 
 def test_score_hand_computed_case() -> None:

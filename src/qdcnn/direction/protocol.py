@@ -404,6 +404,7 @@ def summarise(
         ]
     )[order]
     scored = score_runs(truth[order], preds, majority, seed=seeds[0])
+    scored["notes"] += collapse_notes(y, splits, [r.predictions for r in runs], seeds)
     return MethodResult(
         method,
         dataset,
@@ -422,3 +423,26 @@ def summarise(
         test_labels=truth[order].tolist(),
         **{k: v for k, v in scored.items() if k != "accuracy"},
     )
+
+
+def collapse_notes(
+    y: NDArray[np.int64],
+    splits: Sequence[Split],
+    runs: Sequence[Sequence[NDArray[np.int64]]],
+    seeds: Sequence[int],
+) -> list[str]:
+    """A note for each seed and fold where one answer covers nearly all test frames of a
+    block that holds several classes (:func:`~qdcnn.direction.scores.collapsed`)."""
+    from qdcnn.direction.scores import collapsed, one_answer_share
+
+    notes = []
+    for seed, predictions in zip(seeds, runs, strict=True):
+        for i, ((_, test), p) in enumerate(zip(splits, predictions, strict=True)):
+            if collapsed(y[test], p):
+                share = one_answer_share(y[test], p)[0]
+                answer = DIRECTIONS[int(np.bincount(p, minlength=_N_CLASSES).argmax())]
+                notes.append(
+                    f"collapsed: '{answer}' for {share:.0%} of fold {i + 1}'s test frames "
+                    f"(seed {seed}), which hold two classes or more"
+                )
+    return notes

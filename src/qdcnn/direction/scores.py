@@ -44,9 +44,11 @@ __all__ = [
     "Scores",
     "block_bootstrap",
     "block_length",
+    "collapsed",
     "format_metric",
     "format_value",
     "format_with_interval",
+    "one_answer_share",
     "paired_difference",
     "politis_white_block",
     "score",
@@ -61,6 +63,10 @@ DEFAULT_MIN_BLOCK = 2 * LabelConfig().window + 1
 #: The automatic block length is this many times Politis & White's MSE-optimal length.
 BLOCK_FACTOR = 2.0
 _PW_RUN = 5  # Politis & White's K: small autocorrelations in a row that end the dependence
+#: A test block where one answer covers more than this share of the frames while the truth
+#: holds two classes with :data:`PRESENT_SHARE` each counts as a collapse (issue 20).
+COLLAPSE_SHARE = 0.95
+PRESENT_SHARE = 0.10
 METHOD = "circular block bootstrap, percentile, widened by sqrt(n/(n-b)) and t(n/b-1)/z"
 
 
@@ -212,6 +218,32 @@ def undefined_reason(y_true: NDArray[np.int64]) -> str | None:
     if classes.size != 1:
         return None
     return f"all {y_true.size} test labels are {DIRECTIONS[int(classes[0])]!r}"
+
+
+def one_answer_share(y_true: ArrayLike, y_pred: ArrayLike) -> tuple[float, bool]:
+    """The share of the most frequent answer in ``y_pred``, and whether ``y_true`` holds two
+    classes or more with at least :data:`PRESENT_SHARE` of the frames each.
+
+    A method *collapsed* on a test block when the share exceeds :data:`COLLAPSE_SHARE` on a
+    block where the truth is mixed (:func:`collapsed`).
+
+    Examples
+    --------
+    >>> one_answer_share([0, 1, 1, 2], [1, 1, 1, 1])
+    (1.0, True)
+    >>> one_answer_share([1] * 19 + [2], [1] * 20)
+    (1.0, False)
+    """
+    truth, pred = _check_pair(y_true, y_pred)
+    present = np.bincount(truth, minlength=len(DIRECTIONS)) / truth.size
+    top = np.bincount(pred, minlength=len(DIRECTIONS)).max() / pred.size
+    return float(top), int((present >= PRESENT_SHARE).sum()) >= 2
+
+
+def collapsed(y_true: ArrayLike, y_pred: ArrayLike) -> bool:
+    """One answer for more than :data:`COLLAPSE_SHARE` of a block whose truth is mixed."""
+    top, mixed = one_answer_share(y_true, y_pred)
+    return mixed and top > COLLAPSE_SHARE
 
 
 def format_with_interval(value: float, interval: Interval, digits: int = 2) -> str:

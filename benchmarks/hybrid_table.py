@@ -1,0 +1,193 @@
+"""The hybrid table: PilotNet, the quantum-head hybrid, its twin and its ablations, per recording.
+
+One ``qdcnn evaluate`` run per recording of ``--data-root`` (5 contiguous folds, gap 5, the
+transfer recipe for the hybrids, ``--paired``): 3 seeds on the two small recordings (the
+mountain track and the real sample), one on the two large ones. Each run's JSON lines go to
+``--out`` without the per-frame predictions, plus what the predictions say per fold (the
+share of the most frequent answer, for the collapse check) and the run's wall and CPU time.
+``--table`` prints README's tables from those files without recomputing anything::
+
+    python benchmarks/hybrid_table.py --data-root ../shared/data --cache ~/.cache/hybrid-table
+    python benchmarks/hybrid_table.py --table
+
+With ``--cache DIR`` a stopped run resumes where it stopped (results are kept per method,
+fold, seed and recording), and its times are then those of the resumed part.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cross_recording import _record, lighten, read, run_one
+from qdcnn.data.splits import ContiguousKFold
+from qdcnn.direction.scores import collapsed, format_metric, one_answer_share
+from readme_tables import markdown_table
+
+#: Recording, its label suffix, and seeds.
+RECORDINGS = {
+    "udacity-mountain-track": ("", 3),
+    "real-dashcam-sample": ("@unit=rad,threshold=p33", 3),
+    "udacity-lake-track": ("", 1),
+    "udacity-dark-mountain-track": ("", 1),
+}
+HYBRID = "qdcnn-head"
+METHODS = [
+    "dnn-pilotnet",
+    HYBRID,
+    f"{HYBRID}-noent",
+    f"{HYBRID}-fixed",
+    f"{HYBRID}-linear",
+]
+FOLDS, GAP = 5, 5
+
+
+def fold_shares(item: dict[str, Any]) -> list[dict[str, Any]]:
+    """Per seed and fold: the share of the most frequent answer and whether it collapsed."""
+    truth = np.asarray(item["test_labels"])
+    out = []
+    splits = list(ContiguousKFold(FOLDS, gap=GAP).split(np.arange(truth.size)))
+    for seed, predictions in zip(item["seeds"], item["predictions"], strict=True):
+        answers = np.asarray(predictions)
+        for fold, (_, test) in enumerate(splits):
+            top, mixed = one_answer_share(truth[test], answers[test])
+            out.append(
+                {
+                    "seed": seed,
+                    "fold": fold,
+                    "top_share": round(top, 3),
+                    "mixed": mixed,
+                    "collapsed": collapsed(truth[test], answers[test]),
+                }
+            )
+    return out
+
+
+def with_fold_shares(item: dict[str, Any]) -> dict[str, Any]:
+    """A result without its per-frame lists, with :func:`fold_shares` in their place."""
+    if "predictions" in item:
+        item = {**item, "folds_checked": fold_shares(item)}
+    return lighten(item)
+
+
+def measure(args: argparse.Namespace) -> None:
+    """Run each chosen recording's evaluation; keep its light lines and its times."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name in args.recordings.split(","):
+        suffix, seeds = RECORDINGS[name]
+        spec = f"udacity:{args.data_root / name}{suffix}"
+        common = [
+            "--method",
+            ",".join(METHODS),
+            "--head",
+            "both",
+            "--transfer",
+            "--seeds",
+            str(seeds),
+            "--threads",
+            str(args.threads),
+        ]
+        wall, cpu = run_one(name, ["--data", spec], args.out, args.cache, common, with_fold_shares)
+        _record(args.out / "timing.json", name, METHODS, args.threads, False, wall, cpu)
+
+
+def _seconds(results: list[dict[str, Any]], method: str) -> float:
+    return next(r["seconds"] for r in results if r["method"] == method)
+
+
+def tables(out: Path) -> None:
+    """README's tables from the kept files."""
+    timing = json.loads((out / "timing.json").read_text(encoding="utf-8"))
+    names = [n for n in RECORDINGS if n in timing]
+    runs = {n: read(out / f"{n}.jsonl") for n in names}
+    methods = list(dict.fromkeys(r["method"] for n in names for r in runs[n][0]))
+    cells = {
+        (r["method"], n): format_metric(r, "balanced_accuracy") for n in names for r in runs[n][0]
+    }
+    rows = [[m, *(cells.get((m, n), "") for n in names)] for m in methods]
+    major = {n: runs[n][0][0]["majority"]["balanced_accuracy"] for n in names}
+    rows.append(["majority class of the training folds", *(f"{major[n]:.2f}" for n in names)])
+    header = ["balanced accuracy [95 %]", *(f"{n} ({RECORDINGS[n][1]} seed(s))" for n in names)]
+    print(markdown_table(header, rows))
+    pairs = list(dict.fromkeys((c["a"], c["b"]) for n in names for c in runs[n][1]))
+    diff = {(c["a"], c["b"], n): c["text"] for n in names for c in runs[n][1]}
+    print()
+    print(
+        markdown_table(
+            ["paired difference", *names],
+            [[f"{a} - {b}", *(diff.get((a, b, n), "") for n in names)] for a, b in pairs],
+        )
+    )
+    print()
+    print(collapse_table(runs, names, methods))
+    print()
+    print(time_table(runs, names, timing))
+
+
+def collapse_table(runs: dict[str, Any], names: list[str], methods: list[str]) -> str:
+    """Per method and recording: collapsed folds / checked folds, and the largest share."""
+    rows = []
+    for m in methods:
+        row = [m]
+        for n in names:
+            item = next((r for r in runs[n][0] if r["method"] == m), None)
+            checks = [] if item is None else item.get("folds_checked", [])
+            mixed = [c for c in checks if c["mixed"]]
+            top = max((c["top_share"] for c in mixed), default=float("nan"))
+            bad = sum(c["collapsed"] for c in mixed)
+            row.append(f"{bad} of {len(mixed)} (largest share {top:.2f})" if checks else "")
+        rows.append(row)
+    return markdown_table(["collapsed folds", *names], rows)
+
+
+def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -> str:
+    """Training seconds of PilotNet and of the transfer recipe (the hybrid's run, which
+    trains the shared stage-1 trunk), their ratio, and each run's wall and CPU time."""
+    rows = []
+    for n in names:
+        results = runs[n][0]
+        pilot, hybrid = _seconds(results, "dnn-pilotnet"), _seconds(results, HYBRID)
+        twin = _seconds(results, f"{HYBRID}-classical")
+        t = timing[n]
+        rows.append(
+            [
+                n,
+                f"{pilot:.0f}",
+                f"{hybrid:.0f}",
+                f"{hybrid / pilot:.2f}",
+                f"{twin:.0f}",
+                f"{t['wall_seconds']:.0f} / {t['cpu_seconds']:.0f}",
+            ]
+        )
+    header = [
+        "recording",
+        "PilotNet s",
+        "hybrid (transfer) s",
+        "ratio",
+        "twin s",
+        "run wall / CPU s",
+    ]
+    return markdown_table(header, rows)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data-root", type=Path, default=Path("../shared/data"))
+    parser.add_argument("--out", type=Path, default=Path("docs/results/hybrid"))
+    parser.add_argument("--cache", type=Path, default=Path(os.environ.get("QDCNN_CACHE", ".")))
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--recordings", default=",".join(RECORDINGS))
+    parser.add_argument("--table", action="store_true", help="only print the tables")
+    args = parser.parse_args()
+    if not args.table:
+        measure(args)
+    tables(args.out)
+
+
+if __name__ == "__main__":
+    main()
