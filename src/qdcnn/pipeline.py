@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.config import LaneConfig, PipelineConfig
-from qdcnn.vision import removal
 from qdcnn.vision.camera import CameraGeometry, apply_camera, estimate_camera, sample_indices
 from qdcnn.vision.grouping import LaneFeatures, group_segments
 from qdcnn.vision.lane_stage import lane_segments
@@ -98,13 +97,10 @@ def process_frame(
         mask = detect_shadows_uu(image, cfg.shadow, rng=rng).mask
     if mask is None:
         segments = lane_segments(image, cfg.lanes)
-    elif remove_shadows is removal.remove_shadows:
+    else:
         # the segments of detect_segments(corrected); ``corrected`` is built on first use
         segments = lane_segments(image, cfg.lanes, mask)
         corrected = partial(remove_shadows, image, mask, road_region(image.shape, cfg.lanes.roi))
-    else:  # a stand-in for remove_shadows (a test's) is used as given
-        corrected = remove_shadows(image, mask, road_region(image.shape, cfg.lanes.roi))
-        segments = lane_segments(corrected, cfg.lanes)
     lanes = {
         g: group_segments(
             segments,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -101,7 +102,7 @@ def drawn_road(lines: list[tuple[int, int, int, int]]) -> np.ndarray:
 def drawn_roads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A folder ``<status>.png`` per drawn road; shadow removal off (they have no shadows,
     and on a flat grey road it would add edges of its own)."""
-    monkeypatch.setattr(pipeline, "remove_shadows", lambda image, mask, roi: image)
+    monkeypatch.setattr(pipeline, "detect_shadows_uu", lambda *a, **k: SimpleNamespace(mask=None))
     folder = tmp_path / "drawn"
     for status, lines in DRAWN.items():
         write_image(folder / f"{status}.png", drawn_road(lines))
