@@ -15,10 +15,12 @@ from qdcnn.errors import ParameterError  # noqa: E402
 from qdcnn.models.hybrid import HybridNet, _make_head  # noqa: E402
 from qdcnn.models.trainer import FrameSamples, Trainer, TrainSettings  # noqa: E402
 from qdcnn.models.transfer import (  # noqa: E402
+    cached_epochs,
     cached_trunk,
     data_key,
     fit_transfer,
     freeze_trunk,
+    keep_trunk,
     load_trunk,
     stage_epochs,
     trunk_state,
@@ -78,6 +80,17 @@ def test_twin_and_ablations_share_the_cached_trunk() -> None:
     assert data_key(samples(), trainer(epochs=3).settings, "tiny") != key
     given, _ = fit_transfer(t, build, "linear", samples(), trunk=trunk)
     assert "classical" not in {r["stage"] for r in given.history}
+
+
+def test_later_stages_take_a_quarter_of_the_epochs_stage_one_ran() -> None:
+    t = trainer(epochs=25)
+    key = data_key(samples(), t.settings, "stopped early")
+    keep_trunk(key, trunk_state(build("linear", 0)), 8)  # as if stage 1 stopped after 8
+    assert cached_epochs(key) == 8
+    result, _ = fit_transfer(t, build, "quantum", samples(), cache_key=key)
+    assert [r["stage"] for r in result.history] == ["head"] * 2 + ["finetune"] * 2
+    given, _ = fit_transfer(t, build, "quantum", samples(), trunk=cached_trunk(key))
+    assert [r["stage"] for r in given.history] == ["head"] * 6 + ["finetune"] * 6
 
 
 def test_a_trunk_of_another_network_is_refused() -> None:

@@ -34,12 +34,14 @@ from torch import nn  # noqa: E402
 HybridBuilder = Callable[[str, int], nn.Module]
 #: Parts of a hybrid network that stage 2 freezes and stage 3 fine-tunes.
 TRUNK_PARTS: tuple[str, str] = ("front", "trunk")
-_TRUNKS: dict[str, dict[str, torch.Tensor]] = {}
+#: key -> (stage-1 trunk, epochs stage 1 ran)
+_TRUNKS: dict[str, tuple[dict[str, torch.Tensor], int]] = {}
 _MAX_CACHED = 16
 
 
 def stage_epochs(epochs: int) -> tuple[int, int]:
-    """Epochs of the head stage and of the fine-tuning stage for ``epochs`` classical ones.
+    """Epochs of the head stage and of the fine-tuning stage after ``epochs`` classical ones
+    (those stage 1 ran, early stopping included).
 
     A quarter each (at least one): the head stage runs the trunk forward only, so the
     three stages cost about 1.3 times the classical training alone.
@@ -88,14 +90,21 @@ def data_key(samples: FrameSamples, settings: TrainSettings, what: str) -> str:
 
 def cached_trunk(key: str) -> dict[str, torch.Tensor] | None:
     """The stage-1 trunk kept under ``key``, if any."""
-    return _TRUNKS.get(key)
+    kept = _TRUNKS.get(key)
+    return None if kept is None else kept[0]
 
 
-def keep_trunk(key: str, state: dict[str, torch.Tensor]) -> None:
-    """Keep a stage-1 trunk (the oldest goes beyond :data:`_MAX_CACHED`)."""
+def cached_epochs(key: str) -> int | None:
+    """How many epochs the stage 1 of the trunk kept under ``key`` ran, if kept."""
+    kept = _TRUNKS.get(key)
+    return None if kept is None else kept[1]
+
+
+def keep_trunk(key: str, state: dict[str, torch.Tensor], epochs: int) -> None:
+    """Keep a stage-1 trunk and the epochs it took (the oldest goes beyond :data:`_MAX_CACHED`)."""
     if len(_TRUNKS) >= _MAX_CACHED:
         _TRUNKS.pop(next(iter(_TRUNKS)))
-    _TRUNKS[key] = state
+    _TRUNKS[key] = (state, epochs)
 
 
 def fit_transfer(
@@ -113,8 +122,9 @@ def fit_transfer(
     Parameters
     ----------
     trainer : Trainer
-        Its settings are stage 1's; stage 2 runs :func:`stage_epochs`' first count at the
-        same rate, stage 3 the second count at a tenth of it.
+        Its settings are stage 1's; stage 2 runs :func:`stage_epochs`' first count (of the
+        epochs stage 1 ran, early stopping included) at the same rate, stage 3 the second
+        count at a tenth of it.
     build : callable
         ``build(head, seed)``, a fresh hybrid network.
     head : str
@@ -135,18 +145,19 @@ def fit_transfer(
     kw = dict(fit_kw or {})
     records: list[dict[str, Any]] = []
     restarts: list[dict[str, Any]] = []
+    ran = s.epochs  # a trunk from a file: the epochs asked for
     if trunk is None and cache_key is not None:
-        trunk = cached_trunk(cache_key)
+        trunk, ran = cached_trunk(cache_key), cached_epochs(cache_key) or ran
     if trunk is None:
         first = _stage(
             trainer, s, "classical", build("linear", s.seed), samples, kw, partial(build, "linear")
         )
-        trunk = trunk_state(first.network)
+        trunk, ran = trunk_state(first.network), len(first.history)
         records += _staged(first, "classical")
         restarts += [{**r, "stage": "classical"} for r in first.restarts]
         if cache_key is not None:
-            keep_trunk(cache_key, trunk)
-    head_epochs, tune_epochs = stage_epochs(s.epochs)
+            keep_trunk(cache_key, trunk, ran)
+    head_epochs, tune_epochs = stage_epochs(ran)
 
     def with_trunk(seed: int) -> nn.Module:
         network = build(head, seed)
