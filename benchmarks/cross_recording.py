@@ -118,7 +118,14 @@ def measure(args: argparse.Namespace) -> None:
 
 
 def _record(
-    path: Path, name: str, methods: list[str], threads: int, cold: bool, wall: float, cpu: float
+    path: Path,
+    name: str,
+    methods: list[str],
+    threads: int,
+    cold: bool,
+    wall: float,
+    cpu: float,
+    load: bool = True,
 ) -> None:
     timing = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
     timing[name] = {
@@ -128,8 +135,9 @@ def _record(
         "cold_cache": cold,
         "wall_seconds": round(wall, 1),
         "cpu_seconds": round(cpu, 1),
-        "load_average_after": os.getloadavg(),
     }
+    if load:  # the machine's load as the run ended
+        timing[name]["load_average_after"] = os.getloadavg()
     path.write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
 
 

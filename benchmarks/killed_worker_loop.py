@@ -24,8 +24,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TEST = (
-    "tests/runtime/test_engine.py"
-    "::test_local_cluster_with_a_killed_worker_gives_identical_output"
+    "tests/runtime/test_engine.py::test_local_cluster_with_a_killed_worker_gives_identical_output"
 )
 
 
