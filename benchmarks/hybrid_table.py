@@ -49,6 +49,8 @@ def fold_shares(item: dict[str, Any]) -> list[dict[str, Any]]:
     """Per seed and fold: the share of the most frequent answer and whether it collapsed."""
     truth = np.asarray(item["test_labels"])
     out = []
+    if (item.get("folds"), item.get("gap")) != (FOLDS, GAP):
+        raise SystemExit(f"{item['method']}: not {FOLDS} contiguous folds with gap {GAP}")
     splits = list(ContiguousKFold(FOLDS, gap=GAP).split(np.arange(truth.size)))
     for seed, predictions in zip(item["seeds"], item["predictions"], strict=True):
         answers = np.asarray(predictions)
@@ -57,7 +59,7 @@ def fold_shares(item: dict[str, Any]) -> list[dict[str, Any]]:
             out.append(
                 {
                     "seed": seed,
-                    "fold": fold,
+                    "fold": fold + 1,
                     "top_share": round(top, 3),
                     "mixed": mixed,
                     "collapsed": collapsed(truth[test], answers[test]),
@@ -109,10 +111,12 @@ def adopt(args: argparse.Namespace) -> None:
         cpu = sum(float(_after(log, f"{k} time (seconds): ")) for k in ("User", "System"))
         wall = float(_after(log, "wall="))
         methods = RECORDINGS[name][2]
-        _record(args.out / "timing.json", name, methods, args.threads, True, wall, cpu, False)
+        _record(args.out / "timing.json", name, methods, args.threads, False, wall, cpu, False)
 
 
 def _after(text: str, marker: str) -> str:
+    if marker not in text:
+        raise SystemExit(f"--adopt: no {marker!r} in the run's log")
     return text.split(marker)[-1].split()[0]
 
 
@@ -160,9 +164,10 @@ def collapse_table(runs: dict[str, Any], names: list[str], methods: list[str]) -
             mixed = [c for c in checks if c["mixed"]]
             top = max((c["top_share"] for c in mixed), default=float("nan"))
             bad = sum(c["collapsed"] for c in mixed)
-            row.append(f"{bad} of {len(mixed)} (largest share {top:.2f})" if checks else "")
+            text = f"{bad} of {len(mixed)} (largest share {top:.2f})" if mixed else "no mixed fold"
+            row.append(text if checks else "")
         rows.append(row)
-    return markdown_table(["collapsed folds", *names], rows)
+    return markdown_table(["collapsed (seed, fold) pairs", *names], rows)
 
 
 def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -> str:

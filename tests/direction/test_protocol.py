@@ -90,10 +90,10 @@ def test_summarise_notes_each_collapsed_fold_and_seed() -> None:
     right = CrossValidation(splits, [y[:20], np.full(20, 2)], [{}, {}], seconds=0.1)
     r = summarise("m", "toy", y, [one_class, right], seeds=(3, 4))
     assert [n for n in r.notes if n.startswith("collapsed")] == [
-        "collapsed: 'straight' for 100% of fold 1's test frames (seed 3), which hold two "
-        "classes or more",
-        "collapsed: 'right' for 100% of fold 2's test frames (seed 4), which hold two classes "
-        "or more",
+        "collapsed: 'straight' for 100.0% of fold 1's test frames (seed 3; over 95% of frames "
+        "holding two classes with 10% each or more)",
+        "collapsed: 'right' for 100.0% of fold 2's test frames (seed 4; over 95% of frames "
+        "holding two classes with 10% each or more)",
     ]
     honest = CrossValidation(splits, [y[:20], y[20:]], [{}, {}], seconds=0.1)
     assert not [n for n in summarise("m", "toy", y, honest).notes if "collapsed" in n]

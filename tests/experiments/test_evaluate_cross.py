@@ -243,3 +243,16 @@ def test_frames_prepared_for_a_network_stay_prepared_when_recordings_are_joined(
     assert joined.shape == (5, 66, 200, 3) and joined[2:].min() == 1
     raw = _concatenate([np.asarray(a), np.asarray(b)], get_method("qdcnn-head"))
     assert not isinstance(raw, PreparedFrames)  # raw frames are cropped and resized later
+
+
+def test_a_test_recording_answered_with_one_class_gets_a_collapse_note() -> None:
+    from qdcnn.experiments.evaluate_cross import Recording, _scored
+
+    y = np.repeat([0, 1, 2], 20)
+    test = Recording("drive", np.zeros((60, 2)), y)
+    runs = np.stack([np.ones(60, dtype=np.int64), y])  # seed 0 says straight throughout
+    result = _scored(get_method("lines-logreg"), test, runs, 1, [0, 1], ["a"], [], 0.1, [])
+    assert [n for n in result.notes if n.startswith("collapsed")] == [
+        "collapsed: 'straight' for 100.0% of the test recording's frames (seed 0; over 95% of "
+        "frames holding two classes with 10% each or more)"
+    ]

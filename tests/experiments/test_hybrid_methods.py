@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +20,14 @@ from qdcnn.direction.methods import (  # noqa: E402
 )
 from qdcnn.direction.model import DirectionModel, train_direction_model  # noqa: E402
 from qdcnn.errors import ParameterError  # noqa: E402
-from qdcnn.experiments.evaluate import evaluate_frames  # noqa: E402
+from qdcnn.experiments.evaluate import (  # noqa: E402
+    EvaluationSpec,
+    evaluate_frames,
+    fold_store,
+    run_evaluation,
+)
 from qdcnn.experiments.noise.direction import direction_sweep  # noqa: E402
+from qdcnn.runtime.reporting import Collector  # noqa: E402
 
 OPTIONS = TrainingOptions(
     epochs=6, threads=1, params={"lr_schedule": "constant", "val_fraction": 0.0}
@@ -189,3 +196,34 @@ def test_transfer_and_from_are_for_hybrids_only(tmp_path: Path) -> None:
         with pytest.raises(ParameterError, match="none of dnn-pilotnet, lines-logreg is a hybrid"):
             staged_note([pilotnet, lines], options)
     assert staged_note([pilotnet], TrainingOptions()) is None
+
+
+def test_cached_folds_tell_transfer_and_trunk_files_apart(tmp_path: Path) -> None:
+    def key(name: str, options: TrainingOptions) -> str:
+        return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
+
+    trunk = tmp_path / "trunk.safetensors"
+    trunk.write_bytes(b"one")
+    plain, staged = TrainingOptions(), TrainingOptions(transfer=True)
+    started = TrainingOptions(from_model=trunk)
+    assert len({key("qdcnn-head", o) for o in (plain, staged, started)}) == 3
+    assert key("dnn-pilotnet", plain) == key("dnn-pilotnet", staged) == key("dnn-pilotnet", started)
+    before = key("qdcnn-head", started)
+    trunk.write_bytes(b"two")  # another trunk under the same name
+    assert key("qdcnn-head", started) != before
+
+
+def test_evaluate_says_transfer_leaves_other_methods_as_they_are() -> None:
+    def spec(methods: str) -> EvaluationSpec:
+        options = replace(OPTIONS, epochs=1, transfer=True)
+        return EvaluationSpec(
+            "synthetic:track1:100", methods, folds=2, inner_folds=0, training=options
+        )
+
+    with pytest.raises(ParameterError, match="unset: lines-logreg is not a hybrid method"):
+        run_evaluation(spec("lines-logreg"), Collector())
+    collected = Collector()
+    result = run_evaluation(spec("lines-logreg,qdcnn-head"), collected)
+    note = "--transfer applies to the hybrids; lines-logreg trains as usual"
+    assert note in collected.notes and note in result.notes
+    assert [r.method for r in result.results] == ["lines-logreg", "qdcnn-head"]

@@ -12,6 +12,7 @@ torch = pytest.importorskip("torch")
 from torch import nn  # noqa: E402
 
 from qdcnn.errors import ParameterError  # noqa: E402
+from qdcnn.models import transfer  # noqa: E402
 from qdcnn.models.hybrid import HybridNet, _make_head  # noqa: E402
 from qdcnn.models.trainer import FrameSamples, Trainer, TrainSettings  # noqa: E402
 from qdcnn.models.transfer import (  # noqa: E402
@@ -40,6 +41,12 @@ def samples(n: int = 60) -> FrameSamples:
     frames = rng.integers(0, 40, (n, 3, 4, 4)).astype(np.uint8)
     frames[np.arange(n), labels, :, :] = 220  # the label's channel is bright
     return FrameSamples.sequence(torch.from_numpy(frames), labels)
+
+
+@pytest.fixture(autouse=True)
+def own_trunk_cache(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each test starts with an empty trunk cache and leaves none behind."""
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
 
 
 def trainer(**kw: Any) -> Trainer:
@@ -91,6 +98,12 @@ def test_later_stages_take_a_quarter_of_the_epochs_stage_one_ran() -> None:
     assert [r["stage"] for r in result.history] == ["head"] * 2 + ["finetune"] * 2
     given, _ = fit_transfer(t, build, "quantum", samples(), trunk=cached_trunk(key))
     assert [r["stage"] for r in given.history] == ["head"] * 6 + ["finetune"] * 6
+    stopping = trainer(epochs=25, patience=1, val_fraction=0.25, lr=0.5)
+    fresh, _ = fit_transfer(stopping, build, "quantum", samples())
+    ran = sum(r["stage"] == "classical" for r in fresh.history)
+    assert ran < 25  # stopped early
+    later = max(1, ran // 4)
+    assert [r["stage"] for r in fresh.history][ran:] == ["head"] * later + ["finetune"] * later
 
 
 def test_a_trunk_of_another_network_is_refused() -> None:

@@ -379,8 +379,8 @@ def summarise(
 ) -> MethodResult:
     """Fold predictions -> pooled scores with intervals, fold spread, pooled confusion.
 
-    ``cv`` is one cross-validation, or one per seed of ``seeds`` (same splits); the
-    first seed also seeds the bootstrap.
+    ``cv`` is one cross-validation, or one per seed of ``seeds`` (same splits, as many as
+    seeds); the first seed also seeds the bootstrap.
     """
     runs = [cv] if isinstance(cv, CrossValidation) else list(cv)
     splits = runs[0].splits
@@ -404,7 +404,8 @@ def summarise(
         ]
     )[order]
     scored = score_runs(truth[order], preds, majority, seed=seeds[0])
-    scored["notes"] += collapse_notes(y, splits, [r.predictions for r in runs], seeds)
+    tests = [test for _, test in splits]
+    scored["notes"] += collapse_notes(y, tests, [r.predictions for r in runs], seeds)
     return MethodResult(
         method,
         dataset,
@@ -427,22 +428,30 @@ def summarise(
 
 def collapse_notes(
     y: NDArray[np.int64],
-    splits: Sequence[Split],
+    blocks: Sequence[NDArray[np.intp]],
     runs: Sequence[Sequence[NDArray[np.int64]]],
     seeds: Sequence[int],
+    names: Sequence[str] | None = None,
 ) -> list[str]:
-    """A note for each seed and fold where one answer covers nearly all test frames of a
-    block that holds several classes (:func:`~qdcnn.direction.scores.collapsed`)."""
-    from qdcnn.direction.scores import collapsed, one_answer_share
+    """A note for each seed and test block where one answer covers nearly all frames of a
+    block that holds several classes (:func:`~qdcnn.direction.scores.collapsed`).
 
+    ``blocks`` are the test frames' indices into ``y``; ``runs`` hold, per seed of
+    ``seeds`` (one run each), the predictions of every block; ``names`` say what each
+    block is (default: ``fold 1's test frames`` ...).
+    """
+    from qdcnn.direction.scores import COLLAPSE_SHARE, PRESENT_SHARE, collapsed, one_answer_share
+
+    names = names or [f"fold {i + 1}'s test frames" for i in range(len(blocks))]
     notes = []
     for seed, predictions in zip(seeds, runs, strict=True):
-        for i, ((_, test), p) in enumerate(zip(splits, predictions, strict=True)):
+        for name, test, p in zip(names, blocks, predictions, strict=True):
             if collapsed(y[test], p):
                 share = one_answer_share(y[test], p)[0]
                 answer = DIRECTIONS[int(np.bincount(p, minlength=_N_CLASSES).argmax())]
                 notes.append(
-                    f"collapsed: '{answer}' for {share:.0%} of fold {i + 1}'s test frames "
-                    f"(seed {seed}), which hold two classes or more"
+                    f"collapsed: '{answer}' for {share:.1%} of {name} (seed "
+                    f"{seed}; over {COLLAPSE_SHARE:.0%} of frames holding two classes with "
+                    f"{PRESENT_SHARE:.0%} each or more)"
                 )
     return notes

@@ -32,6 +32,7 @@ from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.frame_cache import method_inputs
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
+    HYBRID_KINDS,
     DirectionMethod,
     TrainingOptions,
     check_fit_settings,
@@ -50,6 +51,7 @@ from qdcnn.direction.protocol import (
 )
 from qdcnn.errors import InputError, ParameterError
 from qdcnn.experiments.result_cache import UnitStore, unit_key
+from qdcnn.outputs import file_identity
 from qdcnn.runtime.reporting import Reporter
 
 __all__ = [
@@ -241,21 +243,27 @@ def fold_store(
         kind="k-fold",
         method=m.name,
         config=config.to_dict(),
-        options=None if options is None else options_key(options),
+        options=None if options is None else options_key(options, m),
         protocol=protocol,
         data=data,
     )
     return UnitStore(key, use_cache)
 
 
-def options_key(options: TrainingOptions) -> dict[str, Any]:
-    """The training options that change a result (not threads or progress)."""
-    return {
+def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
+    """The training options that change ``m``'s result (not threads or progress);
+    ``--transfer`` and ``--from`` change only a hybrid's."""
+    key: dict[str, Any] = {
         "epochs": options.epochs,
         "weights": None if options.weights is None else str(options.weights),
         "context": options.context,
         "params": {k: repr(v) for k, v in options.params.items()},
     }
+    if m.kind in HYBRID_KINDS:
+        key["transfer"] = options.transfer
+        trunk = options.from_model
+        key["from"] = None if trunk is None else file_identity(trunk, content_hash=True)["sha256"]
+    return key
 
 
 def array_digest(*arrays: NDArray[Any]) -> str:

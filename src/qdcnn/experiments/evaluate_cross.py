@@ -31,7 +31,12 @@ from qdcnn.data.frames import FrameSet, load_frameset, stack_images
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.features import FeatureTable, compute_features
 from qdcnn.direction.methods import DirectionMethod, TrainingOptions
-from qdcnn.direction.protocol import MethodResult, fit_with_search, score_runs
+from qdcnn.direction.protocol import (
+    MethodResult,
+    collapse_notes,
+    fit_with_search,
+    score_runs,
+)
 from qdcnn.errors import InputError
 from qdcnn.experiments.evaluate import (
     EvaluationResult,
@@ -259,7 +264,7 @@ def _train_key(
         kind="cross-recording",
         method=m.name,
         config=cfg.to_dict(),
-        options=None if opts is None else options_key(opts),
+        options=None if opts is None else options_key(opts, m),
         protocol={"gap": spec.gap, "inner_folds": spec.inner_folds},
         train=train_digest,
     )
@@ -295,6 +300,10 @@ def _scored(
     """The result of ``m``'s ``runs`` (seeds x frames) on one test recording."""
     constant = np.full(test.y.size, majority, dtype=np.int64)
     scored = score_runs(test.y, runs, constant, seed=seeds[0])
+    everything = [np.arange(test.y.size)]
+    notes = notes + collapse_notes(
+        test.y, everything, [[r] for r in runs], seeds, ["the test recording's frames"]
+    )
     per_seed = [float(np.mean(run == test.y)) for run in runs]
     return MethodResult(
         m.name,

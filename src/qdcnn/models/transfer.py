@@ -146,8 +146,9 @@ def fit_transfer(
     records: list[dict[str, Any]] = []
     restarts: list[dict[str, Any]] = []
     ran = s.epochs  # a trunk from a file: the epochs asked for
-    if trunk is None and cache_key is not None:
-        trunk, ran = cached_trunk(cache_key), cached_epochs(cache_key) or ran
+    kept = _TRUNKS.get(cache_key) if trunk is None and cache_key is not None else None
+    if kept is not None:
+        trunk, ran = kept
     if trunk is None:
         first = _stage(
             trainer, s, "classical", build("linear", s.seed), samples, kw, partial(build, "linear")
