@@ -70,6 +70,9 @@ class TrainingOptions:
     from_model : path or None
         A saved network of the same architecture whose trunk a hybrid starts from
         (``train-direction --from``).
+
+    ``transfer`` and ``from_model`` change only the hybrids' estimators; other methods
+    ignore them (:func:`staged_note` says which, and refuses them without a hybrid).
     """
 
     epochs: int = 25
