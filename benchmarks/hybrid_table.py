@@ -10,15 +10,15 @@ share of the most frequent answer, for the collapse check) and the run's wall an
     python benchmarks/hybrid_table.py --data-root ../shared/data --cache ~/.cache/hybrid-table
     python benchmarks/hybrid_table.py --table
 
-With ``--cache DIR`` a stopped run resumes where it stopped (results are kept per method,
-fold, seed and recording), and its times are then those of the resumed part.
+Results go to ``--cache`` (default: qdcnn's own, ``$QDCNN_CACHE`` or
+``~/.cache/qdcnn``; kept per method, fold, seed and recording), so a stopped run
+resumes where it stopped, and its times are then those of the resumed part.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ import numpy as np
 
 from cross_recording import _record, lighten, read, run_one
 from qdcnn.data.splits import ContiguousKFold
+from qdcnn.direction.features import cache_dir
 from qdcnn.direction.scores import collapsed, format_metric, one_answer_share
 from readme_tables import markdown_table
 
@@ -205,7 +206,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data-root", type=Path, default=Path("../shared/data"))
     parser.add_argument("--out", type=Path, default=Path("docs/results/hybrid"))
-    parser.add_argument("--cache", type=Path, default=Path(os.environ.get("QDCNN_CACHE", ".")))
+    parser.add_argument("--cache", type=Path, default=cache_dir(), help="default: qdcnn's cache")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--recordings", default=",".join(RECORDINGS))
     parser.add_argument("--table", action="store_true", help="only print the tables")
