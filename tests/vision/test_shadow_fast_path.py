@@ -1,9 +1,14 @@
-"""The fast intensity path of the UU-dagger detector (issue 22) against a straightforward
-implementation of the detector as it was before: same centroid, scores and masks, bit for
-bit; and its shot sampling against the binomial distribution, numpy's and Aer's counts."""
+"""The fast intensity path of the UU-dagger detector (issue 22), NumPy and compiled, against
+a straightforward implementation of the detector as it was before: same centroid, scores
+and masks, bit for bit (the compiled calibration's centroid to 1e-12, its Newton steps
+using another tangent and summation order); and its shot sampling against the binomial
+distribution, numpy's and Aer's counts."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 
 import cv2
@@ -20,7 +25,14 @@ from qdcnn.quantum.uu_dagger import (
     ry_state_table,
     value_to_angle,
 )
-from qdcnn.vision.shadows import block_grid, detect_shadows_uu, expand_blocks, sampled_decisions
+from qdcnn.vision.shadows import (
+    KERNELS_VARIABLE,
+    block_grid,
+    compiled_kernels,
+    detect_shadows_uu,
+    expand_blocks,
+    sampled_decisions,
+)
 
 #: significance level of each (deterministic, seeded) chi-square test
 ALPHA = 1e-4
@@ -89,33 +101,81 @@ def _scenes(draw: st.DrawFn) -> tuple[np.ndarray, ShadowConfig]:
     return image, cfg
 
 
+KERNELS = ["numpy", "numba"]
+
+
+@contextmanager
+def _kernels(name: str) -> Iterator[None]:
+    """Run the detector's NumPy path or its compiled kernels (skipped without Numba)."""
+    before = os.environ.get(KERNELS_VARIABLE)
+    os.environ[KERNELS_VARIABLE] = name
+    try:
+        if name == "numba" and compiled_kernels() is None:
+            pytest.skip("numba is not installed")
+        yield
+    finally:
+        if before is None:
+            del os.environ[KERNELS_VARIABLE]
+        else:
+            os.environ[KERNELS_VARIABLE] = before
+
+
+def _assert_as_reference(image: np.ndarray, cfg: ShadowConfig, kernels: str) -> None:
+    centroid, scores, mask = _reference(image, cfg)
+    with _kernels(kernels):
+        ours = detect_shadows_uu(image, cfg)
+    if kernels == "numba" and cfg.centroid is None:  # calibrated: Newton's last bits differ
+        assert ours.centroid == pytest.approx(centroid, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(ours.block_scores, scores, rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(ours.block_mask, ours.block_scores >= cfg.threshold)
+    else:
+        assert ours.centroid == centroid
+        np.testing.assert_array_equal(ours.block_scores, scores)
+        np.testing.assert_array_equal(ours.block_mask, scores >= cfg.threshold)
+    np.testing.assert_array_equal(ours.mask, mask)
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
 @settings(max_examples=120, deadline=None)
 @given(scene=_scenes())
 def test_fast_path_is_bit_identical_to_the_reference(
-    scene: tuple[np.ndarray, ShadowConfig],
+    kernels: str, scene: tuple[np.ndarray, ShadowConfig]
 ) -> None:
     image, cfg = scene
     if min(image.shape[:2]) < cfg.downsample:
         return
-    centroid, scores, mask = _reference(image, cfg)
-    ours = detect_shadows_uu(image, cfg)
-    assert ours.centroid == centroid
-    np.testing.assert_array_equal(ours.block_scores, scores)
-    np.testing.assert_array_equal(ours.block_mask, scores >= cfg.threshold)
-    np.testing.assert_array_equal(ours.mask, mask)
+    _assert_as_reference(image, cfg, kernels)
 
 
+@pytest.mark.parametrize("kernels", KERNELS)
 @pytest.mark.parametrize("size", [(320, 160), (1280, 720)])
-def test_fast_path_on_the_benchmark_frames(size: tuple[int, int]) -> None:
+def test_fast_path_on_the_benchmark_frames(kernels: str, size: tuple[int, int]) -> None:
     from qdcnn.experiments.shadow_bench import bench_frames
 
     for image in bench_frames(*size, 3, seed=4):
         for cfg in (ShadowConfig(shots=None), ShadowConfig(shots=None, centroid=70.0)):
-            centroid, scores, mask = _reference(image, cfg)
-            ours = detect_shadows_uu(image, cfg)
-            assert ours.centroid == centroid
-            np.testing.assert_array_equal(ours.block_scores, scores)
-            np.testing.assert_array_equal(ours.mask, mask)
+            _assert_as_reference(image, cfg, kernels)
+
+
+@pytest.mark.parametrize("centroid", [None, 70.0])
+@pytest.mark.parametrize("median_ksize", [1, 5, 17])
+def test_compiled_shots_are_the_numpy_paths_shots(
+    centroid: float | None, median_ksize: int
+) -> None:
+    """Same uniforms, same brackets: the compiled kernels' shot decisions, scores and mask
+    are the NumPy path's (the calibrated centroid to 1e-12)."""
+    from qdcnn.experiments.shadow_bench import bench_frames
+
+    cfg = ShadowConfig(shots=1024, centroid=centroid, median_ksize=median_ksize)
+    for image in bench_frames(320, 160, 3, seed=8):
+        with _kernels("numpy"):
+            theirs = detect_shadows_uu(image, cfg, rng=5)
+        with _kernels("numba"):
+            ours = detect_shadows_uu(image, cfg, rng=5)
+        assert ours.centroid == pytest.approx(theirs.centroid, rel=1e-12)
+        np.testing.assert_array_equal(ours.block_mask, theirs.block_mask)
+        np.testing.assert_array_equal(ours.block_scores, theirs.block_scores)
+        np.testing.assert_array_equal(ours.mask, theirs.mask)
 
 
 # --- shots -------------------------------------------------------------------------------

@@ -141,7 +141,7 @@ def kmeans_start(
 #: Widest spread of training angles for which :func:`propagation_fixed_point` answers:
 #: below ``2 pi / 3`` the averaged step has one root in the angles' range and the
 #: propagation iteration contracts towards it (``|d theta_{n+1} / d theta_n| < 1``).
-_MAX_FAST_SPREAD = 2.0 * np.pi / 3.0 - 1e-3
+MAX_FAST_SPREAD = 2.0 * np.pi / 3.0 - 1e-3
 
 
 def propagation_fixed_point(
@@ -178,14 +178,14 @@ def propagation_fixed_point(
         Start of the propagation.
     """
     lo, hi = float(sorted_angles[0]), float(sorted_angles[-1])
-    if hi - lo >= _MAX_FAST_SPREAD:
+    if hi - lo >= MAX_FAST_SPREAD:
         return None
     theta = _newton_root(sorted_angles * 0.5, weights, theta0)
     if theta is None:
         return None
     distance = abs(theta - theta0)
     reach = hi - lo + distance
-    if reach >= _MAX_FAST_SPREAD or distance > np.pi / 8:
+    if reach >= MAX_FAST_SPREAD or distance > np.pi / 8:
         return None
     rho = max(0.5, 0.5 / np.cos(reach / 2.0) ** 2 - 1.0)
     needed = 0.0 if distance <= tol else np.log(tol / distance) / np.log(rho) + 2.0

@@ -218,21 +218,39 @@ def _small_binomial(
 
 #: Probability grid of the CDF tables of :func:`binomial_at_most` (a power of two, so the
 #: grid cell of ``p`` is exact).
-_CDF_GRID = 1 << 16
+CDF_GRID = 1 << 16
 
 
 @lru_cache(maxsize=4)
-def _cdf_table(shots: int, limit: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def cdf_table(shots: int, limit: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``P(Bin(shots, j / G) <= limit)`` at the lower (``upper``) and upper (``lower``)
     grid point of each cell ``j = 0 .. G`` (the cell of ``p = 1`` is the point itself)."""
     from scipy.special import bdtr
 
-    cdf = bdtr(limit, shots, np.arange(_CDF_GRID + 1) / _CDF_GRID)
+    cdf = bdtr(limit, shots, np.arange(CDF_GRID + 1) / CDF_GRID)
     upper = cdf
     lower = np.append(cdf[1:], cdf[-1])
     for table in (upper, lower):
         table.setflags(write=False)
     return upper, lower
+
+
+#: Grid cells per cell of :func:`coarse_cdf_brackets` (a power of two).
+COARSE_CELLS = 64
+
+
+@lru_cache(maxsize=4)
+def coarse_cdf_brackets(shots: int, limit: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The lowest and highest of both :func:`cdf_table` brackets over each run of
+    :data:`COARSE_CELLS` grid cells: a uniform at most the lowest passes, above the
+    highest fails, in every cell of the run (the same decisions as the fine brackets)."""
+    upper, lower = cdf_table(shots, limit)
+    starts = np.arange(0, CDF_GRID + 1, COARSE_CELLS)
+    low = np.minimum.reduceat(np.minimum(upper, lower), starts)
+    high = np.maximum.reduceat(np.maximum(upper, lower), starts)
+    for table in (low, high):
+        table.setflags(write=False)
+    return low, high
 
 
 def binomial_at_most(
@@ -258,9 +276,9 @@ def binomial_at_most(
         return np.zeros(np.shape(p), dtype=bool)
     if limit >= shots:
         return np.ones(np.shape(p), dtype=bool)
-    upper, lower = _cdf_table(shots, limit)
-    cell = np.multiply(p, _CDF_GRID).astype(np.intp)
-    np.clip(cell, 0, _CDF_GRID, out=cell)
+    upper, lower = cdf_table(shots, limit)
+    cell = np.multiply(p, CDF_GRID).astype(np.intp)
+    np.clip(cell, 0, CDF_GRID, out=cell)
     passed = u <= lower.take(cell)
     unsure = np.flatnonzero((u <= upper.take(cell)) != passed)
     if unsure.size:

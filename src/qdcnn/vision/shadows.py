@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import lru_cache, partial
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import cv2
@@ -33,11 +34,18 @@ from numpy.typing import NDArray
 
 from qdcnn.config import ShadowConfig
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.quantum.centroid import propagate_centroid, propagation_fixed_point
+from qdcnn.quantum.centroid import (
+    MAX_FAST_SPREAD,
+    propagate_centroid,
+    propagation_fixed_point,
+)
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.sampling import (
+    CDF_GRID,
     as_generator,
     binomial_at_most,
+    cdf_table,
+    coarse_cdf_brackets,
     inverse_binomial,
 )
 from qdcnn.quantum.uu_dagger import (
@@ -129,6 +137,11 @@ class BlockGrid:
         tuple[int, int],
         tuple[tuple[int, ...], NDArray[np.intp], tuple[int, ...], NDArray[np.intp]] | None,
     ] = field(default_factory=dict, compare=False, repr=False)
+
+    #: downsample -> block edges in full-resolution pixels (rows, columns) and block areas
+    pixel_cache: dict[int, tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     #: median aperture -> :func:`~qdcnn.vision.block_decisions.row_compression` of row_of
     median_cache: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]] | None] = field(
@@ -630,11 +643,17 @@ def detect_shadows_uu(
         cfg = replace(cfg, feature=model.feature, threshold=model.threshold)  # type: ignore[arg-type]
     values = feature_input(image, cfg.feature)
     geometry = block_grid(values.shape[:2], cfg.downsample, cfg.grid)
+    ideal = backend == "numpy" and (noise is None or noise.is_ideal)
+    kernels = compiled_kernels() if ideal and values.dtype == np.uint8 else None
+    if kernels is not None:
+        lookup = state_lookup(geometry, values.shape[1], cfg.downsample)
+        if lookup is not None:
+            return _detect_compiled(kernels, values, geometry, lookup, cfg, model, rng)
     sums, area = _block_sums(values, geometry, cfg.downsample)
     blocks = (sums / area).reshape(geometry.grid_shape)
     centroid, source = _centroid_of(cfg, model, blocks)
     lookup = None
-    if backend == "numpy" and (noise is None or noise.is_ideal) and values.dtype == np.uint8:
+    if ideal and values.dtype == np.uint8:
         lookup = state_lookup(geometry, values.shape[1], cfg.downsample)
     if lookup is not None:
         decided, scores = _looked_up(lookup, sums, centroid, cfg, rng, source != "calibrated")
@@ -651,6 +670,285 @@ def detect_shadows_uu(
         source,
         block_mask,
     )
+
+
+#: ``QDCNN_KERNELS=numpy`` runs the NumPy detector instead of the compiled kernels.
+KERNELS_VARIABLE = "QDCNN_KERNELS"
+
+
+def compiled_kernels() -> ModuleType | None:
+    """:mod:`qdcnn.vision.block_kernels`, or ``None`` when Numba is missing or
+    ``QDCNN_KERNELS=numpy`` asks for the NumPy detector (the reference the kernels are
+    tested against, and what the benchmarks compare them with)."""
+    if os.environ.get(KERNELS_VARIABLE, "numba") == "numpy":
+        return None
+    return _import_kernels()
+
+
+@lru_cache(maxsize=1)
+def _import_kernels() -> ModuleType | None:
+    try:
+        from qdcnn.vision import block_kernels
+    except ImportError:  # numba not installed: the NumPy detector
+        return None
+    return block_kernels
+
+
+def _detect_compiled(
+    kernels: ModuleType,
+    grey: NDArray[Any],
+    geometry: BlockGrid,
+    lookup: StateLookup,
+    cfg: ShadowConfig,
+    model: ShadowModel | None,
+    rng: int | np.random.Generator | None,
+) -> ShadowDetection:
+    """:func:`detect_shadows_uu` on ``uint8`` intensity with the compiled kernels: the
+    same block sums, decisions and mask as the NumPy path (the calibrated centroid to a
+    few units in the last place), in one or two kernel calls."""
+    rows, cols, area = _pixel_edges(geometry, cfg.downsample)
+    if cfg.centroid is None and model is None:
+        sums, blocks, theta = kernels.calibrate_blocks(
+            grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
+        )
+        centroid, source = _calibrated_value(theta, blocks, cfg), "calibrated"
+    else:
+        centroid, source = (
+            (float(cfg.centroid), "given") if cfg.centroid is not None else _model_centroid(model)
+        )
+        if cfg.shots is not None and cfg.median_ksize**2 <= 255:
+            return _detect_shot_table(kernels, grey, geometry, lookup, cfg, centroid, source, rng)
+        band = _band(lookup, centroid, cfg)
+        if band is not None:
+            sums, blocks, decided, mask = kernels.detect_band(
+                grey, rows, cols, area, band, geometry.row_of, geometry.col_of, cfg.median_ksize
+            )
+            exact = partial(_overlap_scores, lookup, sums.ravel(), centroid)
+            return _detection(mask, blocks, exact, centroid, cfg, source, decided)
+        sums, blocks = kernels.block_sums(grey, rows, cols, area)
+    scores, decided, mask = _compiled_decisions(kernels, lookup, sums, centroid, cfg, rng, geometry)
+    return _detection(mask, blocks, scores, centroid, cfg, source, decided)
+
+
+def _detect_shot_table(
+    kernels: ModuleType,
+    grey: NDArray[np.uint8],
+    geometry: BlockGrid,
+    lookup: StateLookup,
+    cfg: ShadowConfig,
+    centroid: float,
+    source: str,
+    rng: int | np.random.Generator | None,
+) -> ShadowDetection:
+    """A repeated centroid with shots: one uniform per block against the pass probability
+    of its sum (:func:`_passing_table`, cached), so the decisions are those of
+    :func:`sampled_decisions`; the scores are computed on first use from the same uniforms."""
+    rows, cols, area = _pixel_edges(geometry, cfg.downsample)
+    shots = int(cfg.shots or 0)
+    u = as_generator(rng).random(int(area.size))
+    passing = _passing_table(lookup.sizes, lookup.starts, centroid, cfg.threshold, shots)
+    sums, blocks, decided, mask = kernels.detect_shot_table(
+        grey,
+        rows,
+        cols,
+        area,
+        lookup.offsets,
+        passing,
+        u,
+        geometry.row_of,
+        geometry.col_of,
+        cfg.median_ksize,
+    )
+    exact = partial(_overlap_scores, lookup, sums.ravel(), centroid)
+    limit = _most_ones(shots, cfg.threshold)
+    passed = decided.ravel().view(np.bool_)
+    scores = partial(_inverse_scores_of, exact, u, passed, shots, limit)
+    return _detection(mask, blocks, scores, centroid, cfg, source, decided)
+
+
+@lru_cache(maxsize=8)
+def _passing_table(
+    sizes: tuple[int, ...], starts: tuple[int, ...], centroid: float, threshold: float, shots: int
+) -> NDArray[np.float64]:
+    """For every entry of the joined state tables (a block size and sum), the probability
+    ``P(Bin(shots, 1 - score) <= limit)`` that its circuit passes with ``shots`` shots: a
+    block passes when its uniform is at most that (-1 or 2 where no count or every count
+    passes)."""
+    from scipy.special import bdtr
+
+    limit = _most_ones(shots, threshold)
+    cos_half, sin_half = joined_state_tables(sizes)
+    p = 1.0 - overlap_fidelity(float(value_to_angle(centroid)), cos_half, sin_half)
+    if limit < 0 or limit >= shots:
+        table = np.full(p.size, 2.0 if limit >= shots else -1.0)
+    else:
+        table = bdtr(limit, shots, np.clip(p, 0.0, 1.0))
+    table.setflags(write=False)
+    return table
+
+
+def _inverse_scores_of(
+    exact: Callable[[], NDArray[np.float64]],
+    u: NDArray[np.float64],
+    passed: NDArray[np.bool_],
+    shots: int,
+    limit: int,
+) -> NDArray[np.float64]:
+    """:func:`_inverse_scores` of the exact scores computed now."""
+    return _inverse_scores(1.0 - exact(), u, passed, shots, limit)
+
+
+def _model_centroid(model: ShadowModel | None) -> tuple[float, str]:
+    if model is None:
+        raise ParameterError("model", None, "a model or a centroid")
+    return model.centroid, "model"
+
+
+def _detection(
+    mask: NDArray[np.bool_],
+    blocks: NDArray[np.float64],
+    scores: NDArray[np.float64] | Callable[[], NDArray[np.float64]],
+    centroid: float,
+    cfg: ShadowConfig,
+    source: str,
+    decided: NDArray[np.uint8],
+) -> ShadowDetection:
+    return ShadowDetection(
+        mask,
+        blocks,
+        _reshaped(scores, blocks.shape),
+        centroid,
+        cfg.threshold,
+        cfg.feature,
+        source,
+        decided.reshape(blocks.shape).view(np.bool_),
+    )
+
+
+def _band(
+    lookup: StateLookup, centroid: float, cfg: ShadowConfig
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.uint64]] | None:
+    """The exact band of a repeated centroid for :func:`block_kernels.detect_band`; None
+    with shots, a median the kernels do not take, or a band that cannot be certified."""
+    if cfg.shots is not None or lookup.size_index is None or cfg.median_ksize**2 > 255:
+        return None
+    bounds = band_bounds(lookup.sizes, lookup.starts, centroid, cfg.threshold)
+    return None if bounds is None else (lookup.size_index, *bounds)
+
+
+def _pixel_edges(
+    geometry: BlockGrid, downsample: int
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+    """Block edges in full-resolution pixels (rows, columns) and the block areas, (gh, gw)."""
+    cached = geometry.pixel_cache.get(downsample)
+    if cached is None:
+        rows = np.ascontiguousarray(geometry.row_edges * downsample, dtype=np.intp)
+        cols = np.ascontiguousarray(geometry.col_edges * downsample, dtype=np.intp)
+        area = np.outer(np.diff(rows), np.diff(cols)).astype(np.float64)
+        cached = geometry.pixel_cache[downsample] = (rows, cols, area)
+    return cached
+
+
+@lru_cache(maxsize=8)
+def _calibration_settings(cfg: ShadowConfig) -> NDArray[np.float64]:
+    """The numbers :func:`block_kernels.calibrate` takes besides the values and tables."""
+    settings = np.array(
+        [
+            _CALIBRATION_BIN,
+            np.pi / VALUE_SCALE,
+            cfg.propagation_iterations,
+            cfg.propagation_tol,
+            MAX_FAST_SPREAD,
+        ]
+    )
+    settings.setflags(write=False)
+    return settings
+
+
+def _calibrated_value(theta: float, blocks: NDArray[np.float64], cfg: ShadowConfig) -> float:
+    """The centroid (value units) of the kernel's calibrated angle; where the kernel has
+    no certified fixed point (NaN), :func:`calibrate_centroid`'s propagation."""
+    if theta != theta:
+        return calibrate_centroid(blocks, cfg.feature, cfg)
+    return min(max(theta * (VALUE_SCALE / np.pi), 0.0), 255.0)  # angle_to_value, clipped
+
+
+@lru_cache(maxsize=1)
+def _half_angle_tangents() -> NDArray[np.float64]:
+    """``tan(theta / 2)`` of every calibration level (value ``k * _CALIBRATION_BIN``)."""
+    levels = np.arange(int(VALUE_SCALE / _CALIBRATION_BIN) + 1)
+    angles = np.multiply(levels, _CALIBRATION_BIN, dtype=np.float64)
+    angles *= np.pi / VALUE_SCALE
+    table = np.tan(angles * 0.5)
+    table.setflags(write=False)
+    return table
+
+
+def _compiled_decisions(
+    kernels: ModuleType,
+    lookup: StateLookup,
+    sums: NDArray[np.int64],
+    centroid: float,
+    cfg: ShadowConfig,
+    rng: int | np.random.Generator | None,
+    geometry: BlockGrid,
+) -> tuple[
+    NDArray[np.float64] | Callable[[], NDArray[np.float64]], NDArray[np.uint8], NDArray[np.bool_]
+]:
+    """Scores (or how to get them), 0/1 decisions and image mask of the ``(gh, gw)`` block
+    sums without a band: the exact scores thresholded, or one uniform per block with shots
+    (:func:`_looked_up`)."""
+    half = float(value_to_angle(centroid)) / 2.0
+    amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
+    ksize = cfg.median_ksize
+    image = (geometry.row_of, geometry.col_of, min(ksize, 1) if ksize**2 > 255 else ksize)
+    if cfg.shots is None:
+        scores, decided, mask = kernels.detect_scores(
+            sums, amplitudes, np.cos(half), np.sin(half), cfg.threshold, *image
+        )
+        outcome: tuple[Any, Any, Any] = (scores, decided, mask)
+    else:
+        outcome = _compiled_shots(
+            kernels, amplitudes, (np.cos(half), np.sin(half)), sums, cfg, rng, image
+        )
+    if ksize**2 > 255:
+        mask = _to_image_mask(
+            outcome[1].reshape(geometry.grid_shape).view(np.bool_), geometry, ksize
+        )
+        outcome = (outcome[0], outcome[1], mask)
+    return outcome
+
+
+def _compiled_shots(
+    kernels: ModuleType,
+    amplitudes: tuple[Any, ...],
+    centroid_state: tuple[float, float],
+    sums: NDArray[np.int64],
+    cfg: ShadowConfig,
+    rng: int | np.random.Generator | None,
+    image: tuple[Any, ...],
+) -> tuple[Callable[[], NDArray[np.float64]], NDArray[np.uint8], NDArray[np.bool_]]:
+    """:func:`sampled_decisions` by :func:`block_kernels.detect_shots`: the same uniforms,
+    brackets and decisions."""
+    shots, limit = int(cfg.shots or 0), _most_ones(int(cfg.shots or 0), cfg.threshold)
+    u = as_generator(rng).random(sums.size)
+    cells = min(max(limit, 0), shots - 1)
+    tables = (*cdf_table(shots, cells)[::-1], *coarse_cdf_brackets(shots, cells))
+    p, decided, unsure, mask = kernels.detect_shots(
+        sums, amplitudes, *centroid_state, u, tables, CDF_GRID, *image
+    )
+    flat = decided.ravel()
+    if limit < 0 or limit >= shots or unsure.size:
+        if limit < 0 or limit >= shots:
+            flat[:] = limit >= shots
+        else:
+            from scipy.special import bdtr
+
+            at = np.clip(p.take(unsure), 0.0, 1.0)
+            flat[unsure] = u.take(unsure) <= bdtr(limit, shots, at)
+        mask = kernels.expand_median(decided, *image)
+    passed = flat.view(np.bool_)
+    return partial(_inverse_scores, p, u, passed, shots, limit), decided, mask
 
 
 def _simulated(

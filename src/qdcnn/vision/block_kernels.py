@@ -1,0 +1,477 @@
+"""Compiled per-block steps of the UU-dagger shadow detector (issue 22), with Numba.
+
+The NumPy detector (:mod:`qdcnn.vision.shadows`) spends most of a 320x160 frame on
+the fixed cost of some forty small array calls: the block sums, the per-image
+calibration (Otsu's split and the propagation's fixed point), the decisions and the
+expansion of the block mask with its median filter. These kernels do the same
+arithmetic in one compiled loop each:
+
+- :func:`block_sums`: the sum of each block's pixels (what the summed-area corners give);
+- :func:`band_mask`, :func:`score_mask`, :func:`shot_mask`: the decisions of a repeated
+  centroid's band, of the exact scores, and of one uniform per circuit with shots;
+- :func:`calibrate`: Otsu's two-class split of the block means (numpy's histogram
+  bins and scikit-image's float32 sums, as :func:`~qdcnn.vision.otsu.otsu_threshold`)
+  and the propagation's fixed point by Newton's method
+  (:func:`~qdcnn.quantum.centroid.propagation_fixed_point`);
+- :func:`expand_median`: the block mask at image size, median filtered with replicated
+  borders (a box sum, as :func:`~qdcnn.vision.shadows.binary_median`).
+
+Every kernel gives the NumPy path's results bit for bit, except the calibrated centroid,
+whose Newton steps use libm's tangent and sequential dot products instead of NumPy's
+SIMD tangent and BLAS: it agrees to a few units in the last place
+(``tests/vision/test_block_kernels.py``). Compiled code is cached on disk
+(``cache=True``), so a process pays for compilation only the first time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+_JIT: dict[str, Any] = {"cache": True, "nogil": True, "boundscheck": False}
+
+
+@njit(**_JIT)
+def block_sums(grey: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
+    """Pixel sum and mean of each block of a ``uint8`` image; blocks span
+    ``row_edges[i]:row_edges[i + 1]`` by ``col_edges[j]:col_edges[j + 1]`` (pixels) and
+    hold ``area[i, j]`` pixels."""
+    gh, gw = row_edges.size - 1, col_edges.size - 1
+    width = grey.shape[1]
+    sums = np.empty((gh, gw), np.int64)
+    acc = np.empty(width, np.int32)
+    prefix = np.empty(width + 1, np.int64)
+    prefix[0] = 0
+    for i in range(gh):
+        acc[:] = 0
+        for r in range(row_edges[i], row_edges[i + 1]):
+            for c in range(width):
+                acc[c] += grey[r, c]
+        total = 0
+        for c in range(width):
+            total += acc[c]
+            prefix[c + 1] = total
+        for j in range(gw):
+            sums[i, j] = prefix[col_edges[j + 1]] - prefix[col_edges[j]]
+    return sums, sums / area
+
+
+@njit(**_JIT)
+def calibrate_blocks(
+    grey: Any,
+    row_edges: Any,
+    col_edges: Any,
+    area: Any,
+    tan_table: Any,
+    settings: Any,
+) -> Any:
+    """:func:`block_sums` and :func:`calibrate` in one call; ``settings`` holds
+    ``calibrate``'s numbers (bin width, angle per value, iterations, tolerance, spread)."""
+    sums, means = block_sums(grey, row_edges, col_edges, area)
+    theta = calibrate(
+        means.ravel(),
+        settings[0],
+        settings[1],
+        tan_table,
+        int(settings[2]),
+        settings[3],
+        settings[4],
+    )
+    return sums, means, theta
+
+
+@njit(**_JIT)
+def band_mask(sums: Any, size_index: Any, low: Any, width: Any) -> Any:
+    """Blocks whose sum lies in its size's band ``low <= sum <= low + width``."""
+    out = np.empty(sums.shape, np.uint8)
+    flat, decided = sums.ravel(), out.ravel()
+    for b in range(flat.size):
+        s = size_index[b]
+        decided[b] = np.uint64(flat[b] - low[s]) <= width[s]
+    return out
+
+
+@njit(**_JIT)
+def detect_band(
+    grey: Any,
+    row_edges: Any,
+    col_edges: Any,
+    area: Any,
+    band: Any,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """:func:`block_sums`, :func:`band_mask` (``band``: size index per block, band
+    starts and widths per size) and :func:`expand_median` in one call: a repeated
+    centroid's exact detection."""
+    sums, means = block_sums(grey, row_edges, col_edges, area)
+    decided = band_mask(sums, band[0], band[1], band[2])
+    return sums, means, decided, expand_median(decided, row_of, col_of, ksize)
+
+
+@njit(**_JIT)
+def _scores(
+    sums: Any, offsets: Any, cos_half: Any, sin_half: Any, cos_c: float, sin_c: float
+) -> Any:
+    """Exact fidelities ``(cos_x cos_c + sin_x sin_c)^2`` of the looked-up test states."""
+    flat = sums.ravel()
+    out = np.empty(flat.size, np.float64)
+    for b in range(flat.size):
+        k = offsets[b] + flat[b]
+        amp = cos_half[k] * cos_c
+        amp += sin_half[k] * sin_c
+        out[b] = amp * amp
+    return out
+
+
+@njit(**_JIT)
+def score_mask(
+    sums: Any,
+    offsets: Any,
+    cos_half: Any,
+    sin_half: Any,
+    cos_c: float,
+    sin_c: float,
+    threshold: float,
+) -> Any:
+    """Exact scores of the blocks and the blocks at or above ``threshold``."""
+    scores = _scores(sums, offsets, cos_half, sin_half, cos_c, sin_c)
+    return scores, (scores >= threshold).view(np.uint8)
+
+
+@njit(**_JIT)
+def detect_shot_table(
+    grey: Any,
+    row_edges: Any,
+    col_edges: Any,
+    area: Any,
+    offsets: Any,
+    passing: Any,
+    u: Any,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """A repeated centroid's detection with shots: :func:`block_sums`, each block passing
+    when its uniform is at most ``passing[offsets[b] + sum_b]`` (the probability that the
+    circuit of that block sum passes, :func:`~qdcnn.quantum.sampling.binomial_at_most`),
+    and :func:`expand_median`, in one call."""
+    sums, means = block_sums(grey, row_edges, col_edges, area)
+    decided = np.empty(sums.shape, np.uint8)
+    flat, out = sums.ravel(), decided.ravel()
+    for b in range(flat.size):
+        out[b] = u[b] <= passing[offsets[b] + flat[b]]
+    return sums, means, decided, expand_median(decided, row_of, col_of, ksize)
+
+
+@njit(**_JIT)
+def detect_scores(
+    sums: Any,
+    amplitudes: Any,
+    cos_c: float,
+    sin_c: float,
+    threshold: float,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """:func:`score_mask` and :func:`expand_median` in one call; ``amplitudes`` is the
+    looked-up tables ``(offsets, cos_half, sin_half)``."""
+    scores, decided = score_mask(sums, *amplitudes, cos_c, sin_c, threshold)
+    blocks = decided.reshape(sums.shape)
+    return scores, blocks, expand_median(blocks, row_of, col_of, ksize)
+
+
+@njit(**_JIT)
+def detect_shots(
+    sums: Any,
+    amplitudes: Any,
+    cos_c: float,
+    sin_c: float,
+    u: Any,
+    tables: Any,
+    grid: int,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """:func:`shot_mask` and :func:`expand_median` in one call (``tables``: the fine and
+    coarse CDF brackets); the mask is of the bracket decisions, so the caller
+    expands again when it settles blocks between the brackets."""
+    p, passed, unsure = shot_mask(sums, *amplitudes, cos_c, sin_c, u, tables, grid)
+    blocks = passed.view(np.uint8).reshape(sums.shape)
+    return p, blocks, unsure, expand_median(blocks, row_of, col_of, ksize)
+
+
+@njit(**_JIT)
+def shot_mask(
+    sums: Any,
+    offsets: Any,
+    cos_half: Any,
+    sin_half: Any,
+    cos_c: float,
+    sin_c: float,
+    u: Any,
+    tables: Any,
+    grid: int,
+) -> Any:
+    """``P(1) = 1 - score`` of each block, its decision ``u <= F(limit)`` from the
+    bracketing CDF tables, and the blocks whose ``u`` falls between the brackets (the
+    caller settles those with the CDF at their own ``p``), as
+    :func:`~qdcnn.quantum.sampling.binomial_at_most`. ``tables`` is the fine brackets
+    ``(lower, upper)`` per grid cell and the coarse ones ``(low, high)`` per
+    :data:`~qdcnn.quantum.sampling.COARSE_CELLS` cells (the lowest and highest fine
+    bracket in them, a few kilobytes): most blocks are settled by the coarse ones, so few
+    reads go to the megabyte of fine tables."""
+    lower, upper, low, high = tables
+    p = 1.0 - _scores(sums, offsets, cos_half, sin_half, cos_c, sin_c)
+    passed = np.empty(p.size, np.bool_)
+    unsure = np.empty(p.size, np.intp)
+    n_unsure = 0
+    shift = int(math.log2(grid // (low.size - 1)))
+    for b in range(p.size):
+        cell = min(max(int(p[b] * grid), 0), grid)
+        coarse = cell >> shift
+        if u[b] <= low[coarse] or u[b] > high[coarse]:
+            passed[b] = u[b] <= low[coarse]
+            continue
+        passed[b] = u[b] <= lower[cell]
+        if (u[b] <= upper[cell]) != passed[b]:
+            unsure[n_unsure] = b
+            n_unsure += 1
+    return p, passed, unsure[:n_unsure]
+
+
+@njit(**_JIT)
+def expand_median(block_mask: Any, row_of: Any, col_of: Any, ksize: int) -> Any:
+    """The 0/1 block mask at image size (``row_of``/``col_of``: each pixel's block), then
+    the ``ksize`` median with replicated borders: 1 where more than half of the window is
+    1 (``ksize * ksize <= 255``). Each block row is expanded and box-summed along the
+    columns once, and the image rows are running sums of those."""
+    height, width = row_of.size, col_of.size
+    rad = ksize // 2
+    half = np.uint8((ksize * ksize) // 2)
+    rows = _row_box_sums(block_mask, col_of, rad)
+    out = np.empty((height, width), np.uint8)
+    acc = np.zeros(width, np.uint8)
+    for d in range(-rad, rad + 1):
+        top = row_of[min(max(d, 0), height - 1)]
+        for c in range(width):
+            acc[c] += rows[top, c]
+    for r in range(height):
+        if r > 0:
+            enter, leave = row_of[min(r + rad, height - 1)], row_of[max(r - rad - 1, 0)]
+            for c in range(width):
+                acc[c] = acc[c] + rows[enter, c] - rows[leave, c]
+        for c in range(width):
+            out[r, c] = acc[c] > half
+    return out.view(np.bool_)
+
+
+@njit(**_JIT)
+def _row_box_sums(block_mask: Any, col_of: Any, rad: int) -> Any:
+    """Each block row expanded to image width and summed over ``2 rad + 1`` columns
+    (replicated borders)."""
+    gh, width = block_mask.shape[0], col_of.size
+    padded = np.empty(width + 2 * rad, np.uint8)
+    rows = np.empty((gh, width), np.uint8)
+    for i in range(gh):
+        for c in range(width):
+            padded[rad + c] = block_mask[i, col_of[c]]
+        for c in range(rad):
+            padded[c] = padded[rad]
+            padded[width + rad + c] = padded[width + rad - 1]
+        for c in range(width):
+            rows[i, c] = padded[c]
+        for d in range(1, 2 * rad + 1):
+            for c in range(width):
+                rows[i, c] += padded[c + d]
+    return rows
+
+
+@njit(**_JIT)
+def _pairwise_block(a: Any, lo: int, n: int) -> float:
+    """NumPy's pairwise sum of at most 128 values: eight running sums, then a tree."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r = a[lo : lo + 8].copy()
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for k in range(lo + i, lo + n):
+        res += a[k]
+    return res
+
+
+@njit(**_JIT)
+def _pairwise_sum(a: Any, lo: int, n: int) -> float:
+    """NumPy's pairwise summation of ``a[lo:lo + n]`` (``np.add.reduce``), bit for bit:
+    halves (the first a multiple of 8 long) summed separately down to 128 values. Its
+    recursion runs on an explicit stack (a recursive kernel does not cache)."""
+    starts = np.empty(64, np.intp)
+    sizes = np.empty(64, np.intp)
+    left = np.empty(64, np.float64)
+    stage = np.zeros(64, np.int8)  # 0: new, 1: left half pending, 2: right half pending
+    top = 0
+    starts[0], sizes[0], stage[0] = lo, n, 0
+    while True:
+        m = sizes[top]
+        if m > 128 and stage[top] == 0:
+            half = m // 2 - (m // 2) % 8
+            stage[top] = 1
+            starts[top + 1], sizes[top + 1], stage[top + 1] = starts[top], half, 0
+            top += 1
+            continue
+        value = _pairwise_block(a, starts[top], m)
+        top -= 1
+        while top >= 0 and stage[top] == 2:
+            value = left[top] + value
+            top -= 1
+        if top < 0:
+            return value
+        left[top], stage[top] = value, 2
+        half = sizes[top] // 2 - (sizes[top] // 2) % 8
+        starts[top + 1], sizes[top + 1], stage[top + 1] = starts[top] + half, sizes[top] - half, 0
+        top += 1
+
+
+@njit(**_JIT)
+def otsu_threshold(values: Any, nbins: int, first: float, last: float) -> float:
+    """:func:`qdcnn.vision.otsu.otsu_threshold` of values spanning ``[first, last]``,
+    ``first < last``: numpy's bins (edges ``first + i * step``, the last one ``last``,
+    each value moved at most one bin to its side of them), scikit-image's float32 weights
+    and float64 moments summed in the same order, and the first largest between-class
+    variance. Few arrays: allocations cost more than the arithmetic here."""
+    step = (last - first) / nbins
+    scale = nbins / (last - first)
+    counts = np.zeros(nbins, np.intp)
+    for x in values:
+        b = min(int((x - first) * scale), nbins - 1)
+        if x < b * step + first:
+            b -= 1
+        elif b < nbins - 1 and x >= ((b + 1) * step + first if b + 1 < nbins else last):
+            b += 1
+        counts[b] += 1
+    # suffix weights and moments (the reversed cumulative sums), then one forward pass
+    tail = np.empty((2, nbins), np.float64)
+    weight2, moment2 = np.float32(0.0), 0.0
+    for i in range(nbins - 1, -1, -1):
+        weight2 += np.float32(counts[i])
+        moment2 += counts[i] * _centre(i, nbins, step, first, last)
+        tail[0, i], tail[1, i] = weight2, moment2 / np.float64(weight2)
+    weight1, moment1, best, at = np.float32(0.0), 0.0, -np.inf, 0
+    for i in range(nbins - 1):
+        weight1 += np.float32(counts[i])
+        moment1 += counts[i] * _centre(i, nbins, step, first, last)
+        gap = moment1 / np.float64(weight1) - tail[1, i + 1]
+        variance = np.float64(weight1 * np.float32(tail[0, i + 1])) * (gap * gap)
+        if variance > best:
+            best, at = variance, i
+    return _centre(at, nbins, step, first, last)
+
+
+@njit(**_JIT)
+def _centre(i: int, nbins: int, step: float, first: float, last: float) -> float:
+    """Centre of bin ``i``: the mean of its two numpy edges."""
+    upper = (i + 1) * step + first if i + 1 < nbins else last
+    return (i * step + first + upper) / 2.0
+
+
+@njit(**_JIT)
+def _newton_root(tan_half: Any, weights: Any, theta: float) -> float:
+    """:func:`qdcnn.quantum.centroid._newton_root` from ``tan(x_i / 2)``: each
+    ``tan(x_i / 2 - theta / 2)`` by the difference formula, one tangent a step; NaN
+    where it does not settle."""
+    total = _pairwise_sum(weights, 0, weights.size)
+    for _ in range(12):
+        tb = math.tan(0.5 * theta)
+        num, den = 0.0, 0.0
+        for i in range(tan_half.size):
+            t = (tan_half[i] - tb) / (1.0 + tan_half[i] * tb)
+            num += t * weights[i]
+            den += t * t * weights[i]
+        step = 2.0 * num / (den + total)
+        theta += step
+        if abs(step) < 1e-8:
+            return theta
+    return np.nan
+
+
+@njit(**_JIT)
+def fixed_point(
+    angles: Any,
+    tan_half: Any,
+    weights: Any,
+    theta0: float,
+    iterations: int,
+    tol: float,
+    max_spread: float,
+) -> float:
+    """:func:`qdcnn.quantum.centroid.propagation_fixed_point`; NaN where it has no answer."""
+    lo, hi = angles[0], angles[-1]
+    if hi - lo >= max_spread:
+        return np.nan
+    theta = _newton_root(tan_half, weights, theta0)
+    if np.isnan(theta):
+        return theta
+    distance = abs(theta - theta0)
+    reach = hi - lo + distance
+    if reach >= max_spread or distance > np.pi / 8:
+        return np.nan
+    rho = max(0.5, 0.5 / math.cos(reach / 2.0) ** 2 - 1.0)
+    needed = 0.0 if distance <= tol else math.log(tol / distance) / math.log(rho) + 2.0
+    return theta if needed <= iterations else np.nan
+
+
+@njit(**_JIT)
+def calibrate(
+    values: Any,
+    bin_width: float,
+    angle_per_value: float,
+    tan_table: Any,
+    iterations: int,
+    tol: float,
+    max_spread: float,
+) -> float:
+    """The calibrated centroid angle of :func:`~qdcnn.vision.shadows.calibrate_centroid`
+    (two classes, intensity: the dark class of Otsu's split, all values when constant);
+    NaN where the fixed point has no answer (the caller then runs the NumPy calibration
+    and its propagation). ``tan_table[k]`` is the tangent of half the angle of level
+    ``k`` (value ``k * bin_width``)."""
+    first, last = values[0], values[0]
+    for v in values:
+        if v < first:
+            first = v
+        elif v > last:
+            last = v
+    cut = otsu_threshold(values, 256, first, last) if first < last else last
+    cluster = np.empty(values.size, np.float64)
+    counts = np.zeros(int(np.rint(last / bin_width)) + 1, np.intp)
+    n = 0
+    for v in values:
+        if v <= cut:
+            cluster[n] = v
+            n += 1
+            counts[int(np.rint(v / bin_width))] += 1
+    start = _pairwise_sum(cluster, 0, n) / n
+    levels = np.flatnonzero(counts)
+    angles = levels.astype(np.float64) * bin_width
+    angles *= angle_per_value
+    weights = np.empty(levels.size, np.float64)
+    tan_half = np.empty(levels.size, np.float64)
+    for i in range(levels.size):
+        k = levels[i]
+        weights[i] = counts[k]
+        tan_half[i] = tan_table[k] if k < tan_table.size else math.tan(0.5 * angles[i])
+    theta0 = start * angle_per_value
+    return fixed_point(angles, tan_half, weights, theta0, iterations, tol, max_spread)

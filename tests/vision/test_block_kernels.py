@@ -1,0 +1,96 @@
+"""The compiled kernels of the UU-dagger detector, step by step, against the NumPy code they
+replace: NumPy's pairwise sum, Otsu's threshold, the expanded and median-filtered block mask,
+and the calibration (to 1e-12: its Newton steps use another tangent and summation order)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from qdcnn.config import ShadowConfig
+from qdcnn.vision.otsu import otsu_threshold
+from qdcnn.vision.shadows import (
+    _calibration_settings,
+    _half_angle_tangents,
+    binary_median,
+    block_grid,
+    calibrate_centroid,
+    expand_blocks,
+)
+
+kernels = pytest.importorskip("qdcnn.vision.block_kernels", reason="numba is not installed")
+
+
+@pytest.mark.parametrize("n", [1, 7, 8, 9, 127, 128, 129, 255, 256, 1000, 3160, 4099, 20_000])
+def test_pairwise_sum_is_numpys_sum(n: int, rng: np.random.Generator) -> None:
+    for _ in range(5):
+        values = rng.standard_normal(n) * rng.uniform(1, 1e6)
+        assert kernels._pairwise_sum(values, 0, n) == values.sum()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(2, 4000),
+    area=st.sampled_from([1, 2, 12, 16, 32]),
+)
+def test_otsu_threshold_is_the_numpy_threshold(seed: int, n: int, area: int) -> None:
+    rng = np.random.default_rng(seed)
+    values = np.rint(rng.uniform(0, 255, n) * area) / area  # block means of ``area`` pixels
+    if rng.random() < 0.5:
+        values[: n // 3] = np.rint(rng.normal(40, 8, n // 3).clip(0, 255) * area) / area
+    first, last = values.min(), values.max()
+    if first == last:
+        return
+    assert kernels.otsu_threshold(values, 256, first, last) == otsu_threshold(values, 256)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    h=st.integers(8, 200),
+    w=st.integers(8, 360),
+    downsample=st.sampled_from([1, 2, 4]),
+    grid=st.sampled_from([79, 23, 5]),
+    ksize=st.sampled_from([1, 3, 5, 7, 9, 15]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_expand_median_is_the_numpy_mask(
+    h: int, w: int, downsample: int, grid: int, ksize: int, seed: int
+) -> None:
+    if min(h, w) < downsample:
+        return
+    geometry = block_grid((h, w), downsample, grid)
+    blocks = np.random.default_rng(seed).random(geometry.grid_shape) < 0.5
+    expected = expand_blocks(blocks, geometry).view(np.uint8)
+    if ksize > 1:
+        expected = binary_median(expected, ksize)
+    ours = kernels.expand_median(blocks.view(np.uint8), geometry.row_of, geometry.col_of, ksize)
+    np.testing.assert_array_equal(ours, expected.astype(bool))
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), dark=st.floats(0, 200), n=st.integers(20, 4000))
+def test_calibration_agrees_with_the_numpy_calibration(seed: int, dark: float, n: int) -> None:
+    rng = np.random.default_rng(seed)
+    values = np.rint(rng.uniform(dark, 255, n) * 16) / 16
+    values[: n // 4] = np.rint(rng.normal(dark, 6, n // 4).clip(0, 255) * 16) / 16
+    cfg = ShadowConfig(shots=None)
+    theta = kernels.calibrate(values, *_args(cfg))
+    expected = calibrate_centroid(values, "intensity", cfg)
+    if np.isnan(theta):  # no certified fixed point: the caller runs the NumPy calibration
+        return
+    ours = min(max(theta * (255.0 / np.pi), 0.0), 255.0)
+    assert ours == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+def test_constant_blocks_calibrate_to_their_value() -> None:
+    cfg = ShadowConfig(shots=None)
+    theta = kernels.calibrate(np.full(300, 80.0), *_args(cfg))
+    assert theta * 255.0 / np.pi == pytest.approx(80.0, abs=1e-9)
+
+
+def _args(cfg: ShadowConfig) -> tuple[object, ...]:
+    bin_width, angle, iterations, tol, spread = _calibration_settings(cfg)
+    return bin_width, angle, _half_angle_tangents(), int(iterations), tol, spread
