@@ -200,10 +200,12 @@ def detect_shots(
     ksize: int,
 ) -> Any:
     """:func:`shot_mask` and :func:`expand_median` in one call (``tables``: the fine and
-    coarse CDF brackets); the mask is of the bracket decisions, so the caller
-    expands again when it settles blocks between the brackets."""
+    coarse CDF brackets). With blocks left between the brackets the mask is left empty
+    (0 x 0): the caller settles those blocks, then expands."""
     p, passed, unsure = shot_mask(sums, *amplitudes, cos_c, sin_c, u, tables, grid)
     blocks = passed.view(np.uint8).reshape(sums.shape)
+    if unsure.size:
+        return p, blocks, unsure, np.empty((0, 0), np.bool_)
     return p, blocks, unsure, expand_median(blocks, row_of, col_of, ksize)
 
 
