@@ -78,6 +78,8 @@ def bench_pipeline(
     images = [test.image(i) for i in range(min(frames, len(test)))]
     processors = [_trained(method, train, cfg, data, seed, log) for method in methods]
     rows = [_time_method(p, images, log) for p in processors]
+    if processors:
+        rows.append(_time_numpy_detector(processors[0], images, log))
     for size in sizes if processors else ():
         rows.append(_time_at_size(processors[0], data, len(images), size, seed, log))
     result: dict[str, Any] = {
@@ -159,6 +161,26 @@ def _time_method(
         "ms_per_frame": 1e3 * per_frame,
         "frames_per_second": 1.0 / per_frame,
     }
+
+
+def _time_numpy_detector(
+    processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
+) -> dict[str, Any]:
+    """:func:`_time_method` with the shadow detector's NumPy path instead of its compiled
+    kernels (``QDCNN_KERNELS=numpy``): what the kernels gain, measured in the same run."""
+    from qdcnn.vision.shadows import KERNELS_VARIABLE
+
+    before = os.environ.get(KERNELS_VARIABLE)
+    os.environ[KERNELS_VARIABLE] = "numpy"
+    try:
+        row = _time_method(processor, images, log)
+    finally:
+        if before is None:
+            os.environ.pop(KERNELS_VARIABLE, None)
+        else:
+            os.environ[KERNELS_VARIABLE] = before
+    row["method"] = f"{row['method']}, NumPy shadow detector ({KERNELS_VARIABLE}=numpy)"
+    return row
 
 
 def _time_at_size(
