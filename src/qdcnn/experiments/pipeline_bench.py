@@ -77,9 +77,9 @@ def bench_pipeline(
     test = load_frameset(data, seed=seed)
     images = [test.image(i) for i in range(min(frames, len(test)))]
     processors = [_trained(method, train, cfg, data, seed, log) for method in methods]
-    rows = [_time_method(p, images, log) for p in processors]
+    rows = [_time_method(p, images, log) for p in processors[1:]]
     if processors:
-        rows.append(_time_numpy_detector(processors[0], images, log))
+        rows[:0] = _time_with_and_without_kernels(processors[0], images, log)
     for size in sizes if processors else ():
         rows.append(_time_at_size(processors[0], data, len(images), size, seed, log))
     result: dict[str, Any] = {
@@ -133,13 +133,13 @@ def _trained(
 
 
 def _time_method(
-    processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
+    processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None], passes: int = 3
 ) -> dict[str, Any]:
     """Time a trained processor's per-frame pipeline and decision on ``images`` as ``qdcnn
     run`` does them: :meth:`LaneDirectionProcessor.process_batch` on batches of
     :data:`~qdcnn.runtime.chunks.BATCH_FRAMES` frames (shadows and lanes per frame, one
     classifier call per batch, each frame's result the one it gets alone). After one
-    warm-up batch; the median of three passes."""
+    warm-up batch; the median of ``passes`` passes."""
     from qdcnn.runtime.chunks import BATCH_FRAMES
 
     method = processor.model.method
@@ -149,13 +149,13 @@ def _time_method(
     ]
     log(f"timing {method}")
     processor.process_batch(*batches[0])
-    passes = []
-    for _ in range(3):
+    times = []
+    for _ in range(passes):
         t0 = time.perf_counter()
         for batch, indices in batches:
             processor.process_batch(batch, indices)
-        passes.append((time.perf_counter() - t0) / len(images))
-    per_frame = float(np.median(passes))
+        times.append((time.perf_counter() - t0) / len(images))
+    per_frame = float(np.median(times))
     return {
         "method": method,
         "ms_per_frame": 1e3 * per_frame,
@@ -163,24 +163,34 @@ def _time_method(
     }
 
 
-def _time_numpy_detector(
+def _time_with_and_without_kernels(
     processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
-) -> dict[str, Any]:
-    """:func:`_time_method` with the shadow detector's NumPy path instead of its compiled
-    kernels (``QDCNN_KERNELS=numpy``): what the kernels gain, measured in the same run."""
+) -> list[dict[str, Any]]:
+    """:func:`_time_method` with the shadow detector's compiled kernels and with its NumPy
+    path (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the kernels gain, measured
+    on the same frames while the machine's speed drifts alike for both."""
     from qdcnn.vision.shadows import KERNELS_VARIABLE
 
     before = os.environ.get(KERNELS_VARIABLE)
-    os.environ[KERNELS_VARIABLE] = "numpy"
+    passes: dict[str, list[dict[str, Any]]] = {"numba": [], "numpy": []}
     try:
-        row = _time_method(processor, images, log)
+        for _ in range(3):
+            for kernels, out in passes.items():
+                os.environ[KERNELS_VARIABLE] = kernels
+                out.append(_time_method(processor, images, log, passes=1))
     finally:
         if before is None:
             os.environ.pop(KERNELS_VARIABLE, None)
         else:
             os.environ[KERNELS_VARIABLE] = before
-    row["method"] = f"{row['method']}, NumPy shadow detector ({KERNELS_VARIABLE}=numpy)"
-    return row
+    rows = [_median_row(out) for out in passes.values()]
+    rows[1]["method"] += f", NumPy shadow detector ({KERNELS_VARIABLE}=numpy)"
+    return rows
+
+
+def _median_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    per_frame = float(np.median([row["ms_per_frame"] for row in rows])) / 1e3
+    return {**rows[0], "ms_per_frame": 1e3 * per_frame, "frames_per_second": 1.0 / per_frame}
 
 
 def _time_at_size(
