@@ -659,17 +659,8 @@ def detect_shadows_uu(
         decided, scores = _looked_up(lookup, sums, centroid, cfg, rng, source != "calibrated")
     else:
         decided, scores = _simulated(blocks, centroid, cfg, backend, noise, rng)
-    block_mask = decided.reshape(blocks.shape)
-    return ShadowDetection(
-        _to_image_mask(block_mask, geometry, cfg.median_ksize),
-        blocks,
-        _reshaped(scores, blocks.shape),
-        centroid,
-        cfg.threshold,
-        cfg.feature,
-        source,
-        block_mask,
-    )
+    mask = _to_image_mask(decided.reshape(blocks.shape), geometry, cfg.median_ksize)
+    return _detection(mask, blocks, scores, centroid, cfg, source, decided)
 
 
 #: ``QDCNN_KERNELS=numpy`` runs the NumPy detector instead of the compiled kernels.
@@ -811,8 +802,9 @@ def _detection(
     centroid: float,
     cfg: ShadowConfig,
     source: str,
-    decided: NDArray[np.uint8],
+    decided: NDArray[np.bool_] | NDArray[np.uint8],
 ) -> ShadowDetection:
+    """The detection of decisions ``decided`` (0/1 or bool, the blocks' shape or flat)."""
     return ShadowDetection(
         mask,
         blocks,
