@@ -281,12 +281,26 @@ def binomial_at_most(
     np.clip(cell, 0, CDF_GRID, out=cell)
     passed = u <= lower.take(cell)
     unsure = np.flatnonzero((u <= upper.take(cell)) != passed)
+    settle_between_brackets(passed, unsure, p, u, shots, limit)
+    return passed
+
+
+def settle_between_brackets(
+    passed: NDArray[np.bool_],
+    unsure: NDArray[np.intp],
+    p: NDArray[np.float64],
+    u: NDArray[np.float64],
+    shots: int,
+    limit: int,
+) -> None:
+    """Decide, in ``passed``, the circuits ``unsure`` whose uniform fell between the two
+    tabulated brackets: ``u <= P(Bin(shots, p) <= limit)`` with the CDF at their own ``p``
+    (:func:`scipy.special.bdtr`)."""
     if unsure.size:
         from scipy.special import bdtr
 
         exact = bdtr(limit, shots, np.clip(p.take(unsure), 0.0, 1.0))
         passed[unsure] = u.take(unsure) <= exact
-    return passed
 
 
 def inverse_binomial(

@@ -47,6 +47,7 @@ from qdcnn.quantum.sampling import (
     cdf_table,
     coarse_cdf_brackets,
     inverse_binomial,
+    settle_between_brackets,
 )
 from qdcnn.quantum.uu_dagger import (
     VALUE_SCALE,
@@ -704,9 +705,7 @@ def _detect_compiled(
         )
         centroid, source = _calibrated_value(theta, blocks, cfg), "calibrated"
     else:
-        centroid, source = (
-            (float(cfg.centroid), "given") if cfg.centroid is not None else _model_centroid(model)
-        )
+        centroid, source = _repeated_centroid(cfg, model)
         if cfg.shots is not None and cfg.median_ksize**2 <= 255:
             return _detect_shot_table(kernels, grey, geometry, lookup, cfg, centroid, source, rng)
         band = _band(lookup, centroid, cfg)
@@ -787,12 +786,6 @@ def _inverse_scores_of(
 ) -> NDArray[np.float64]:
     """:func:`_inverse_scores` of the exact scores computed now."""
     return _inverse_scores(1.0 - exact(), u, passed, shots, limit)
-
-
-def _model_centroid(model: ShadowModel | None) -> tuple[float, str]:
-    if model is None:
-        raise ParameterError("model", None, "a model or a centroid")
-    return model.centroid, "model"
 
 
 def _detection(
@@ -893,7 +886,7 @@ def _compiled_decisions(
     half = float(value_to_angle(centroid)) / 2.0
     amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
     ksize = cfg.median_ksize
-    image = (geometry.row_of, geometry.col_of, min(ksize, 1) if ksize**2 > 255 else ksize)
+    image = (geometry.row_of, geometry.col_of, 1 if ksize**2 > 255 else ksize)  # big: below
     if cfg.shots is None:
         scores, decided, mask = kernels.detect_scores(
             sums, amplitudes, np.cos(half), np.sin(half), cfg.threshold, *image
@@ -924,22 +917,18 @@ def _compiled_shots(
     brackets and decisions."""
     shots, limit = int(cfg.shots or 0), _most_ones(int(cfg.shots or 0), cfg.threshold)
     u = as_generator(rng).random(sums.size)
-    cells = min(max(limit, 0), shots - 1)
-    tables = (*cdf_table(shots, cells)[::-1], *coarse_cdf_brackets(shots, cells))
+    table_limit = min(max(limit, 0), shots - 1)  # any valid table; out of range is decided below
+    tables = (*cdf_table(shots, table_limit)[::-1], *coarse_cdf_brackets(shots, table_limit))
     p, decided, unsure, mask = kernels.detect_shots(
         sums, amplitudes, *centroid_state, u, tables, CDF_GRID, *image
     )
-    flat = decided.ravel()
+    passed = decided.ravel().view(np.bool_)
     if limit < 0 or limit >= shots or unsure.size:
         if limit < 0 or limit >= shots:
-            flat[:] = limit >= shots
+            passed[:] = limit >= shots
         else:
-            from scipy.special import bdtr
-
-            at = np.clip(p.take(unsure), 0.0, 1.0)
-            flat[unsure] = u.take(unsure) <= bdtr(limit, shots, at)
+            settle_between_brackets(passed, unsure, p, u, shots, limit)
         mask = kernels.expand_median(decided, *image)
-    passed = flat.view(np.bool_)
     return partial(_inverse_scores, p, u, passed, shots, limit), decided, mask
 
 
@@ -972,11 +961,18 @@ def _centroid_of(
 ) -> tuple[float, str]:
     """The centroid to test against and where it comes from: the config's, the model's or
     calibrated on this image's blocks."""
+    if cfg.centroid is None and model is None:
+        return calibrate_centroid(blocks, cfg.feature, cfg), "calibrated"
+    return _repeated_centroid(cfg, model)
+
+
+def _repeated_centroid(cfg: ShadowConfig, model: ShadowModel | None) -> tuple[float, str]:
+    """The config's centroid, else the model's (one of them must be there), and its source."""
     if cfg.centroid is not None:
         return float(cfg.centroid), "given"
-    if model is not None:
-        return model.centroid, "model"
-    return calibrate_centroid(blocks, cfg.feature, cfg), "calibrated"
+    if model is None:
+        raise ParameterError("model", None, "a model or a centroid")
+    return model.centroid, "model"
 
 
 def _looked_up(
