@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -96,6 +97,18 @@ def measure(args: argparse.Namespace) -> None:
         ]
         wall, cpu = run_one(name, ["--data", spec], args.out, args.cache, common, with_fold_shares)
         _record(args.out / "timing.json", name, methods, args.threads, False, wall, cpu)
+        _note_recipe(args.out / "timing.json", name)
+
+
+def _note_recipe(path: Path, name: str) -> None:
+    """Say in the timing file which commit ran and that stage 1 was ``dnn-pilotnet``'s run
+    (the hybrid's ``seconds`` then count stages 2 and 3 only)."""
+    timing = json.loads(path.read_text(encoding="utf-8"))
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+    ).stdout.strip()
+    timing[name].update(commit=commit or None, stage1="dnn-pilotnet")
+    path.write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
 
 
 def adopt(args: argparse.Namespace) -> None:
@@ -173,30 +186,37 @@ def collapse_table(runs: dict[str, Any], names: list[str], methods: list[str]) -
 
 
 def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -> str:
-    """Training seconds of PilotNet and of the transfer recipe (the hybrid's run, which
-    trains the shared stage-1 trunk), their ratio, and each run's wall and CPU time."""
+    """Training seconds of PilotNet and of the whole transfer recipe, their ratio, the
+    twin's, and each run's wall and CPU time. Where stage 1 is ``dnn-pilotnet``'s own run
+    the recipe is PilotNet's seconds plus the hybrid's (stages 2 and 3); in runs made
+    before that, the hybrid's seconds include its own stage 1."""
     rows = []
     for n in names:
-        results = runs[n][0]
+        results, t = runs[n][0], timing[n]
         pilot, hybrid = _seconds(results, "dnn-pilotnet"), _seconds(results, HYBRID)
         twin = _seconds(results, f"{HYBRID}-classical")
-        t = timing[n]
+        shared = t.get("stage1") == "dnn-pilotnet"
+        recipe = pilot + hybrid if shared else hybrid
         rows.append(
             [
                 n,
+                t.get("commit") or "125fc9b",
+                "PilotNet's run" if shared else "its own",
                 f"{pilot:.0f}",
-                f"{hybrid:.0f}",
-                f"{hybrid / pilot:.2f}",
+                f"{recipe:.0f}",
+                f"{recipe / pilot:.2f}",
                 f"{twin:.0f}",
                 f"{t['wall_seconds']:.0f} / {t['cpu_seconds']:.0f}",
             ]
         )
     header = [
         "recording",
+        "commit",
+        "stage 1",
         "PilotNet s",
-        "hybrid (transfer) s",
+        "transfer recipe s",
         "ratio",
-        "twin s",
+        "twin s (stages 2-3)",
         "run wall / CPU s",
     ]
     return markdown_table(header, rows)

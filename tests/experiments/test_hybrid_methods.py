@@ -227,3 +227,35 @@ def test_evaluate_says_transfer_leaves_other_methods_as_they_are() -> None:
     note = "--transfer applies to the hybrids; lines-logreg trains as usual"
     assert note in collected.notes and note in result.notes
     assert [r.method for r in result.results] == ["lines-logreg", "qdcnn-head"]
+
+
+def test_transfer_stage_one_is_the_pilotnet_run_of_the_same_frames(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from qdcnn.models import transfer
+
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    images, labels = lean_frames(60, seed=4)
+    options = replace(OPTIONS, epochs=3, transfer=True)
+    pilot = get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0]
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
+    assert hybrid.classical_recipe == {"class_weight": None, "select": "loss", "restarts": 0}
+    hybrid.fit(images, labels)  # nothing kept yet: stage 1 trains PilotNet
+    assert [r["stage"] for r in hybrid.history_] == ["classical"] * 3 + ["head", "finetune"]
+    (by_hybrid,) = transfer._TRUNKS.values()
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    pilot.fit(images, labels)  # dnn-pilotnet's own run keeps its trunk
+    (by_pilotnet,) = transfer._TRUNKS.values()
+    assert by_pilotnet[1] == len(pilot.history_) == 3
+    assert all(torch.equal(by_hybrid[0][k], v) for k, v in by_pilotnet[0].items())
+    twin = get_method("qdcnn-head-classical").estimator(PipelineConfig(), options)[0]
+    assert [r["stage"] for r in twin.fit(images, labels).history_] == ["head", "finetune"]
+
+
+def test_stage_one_trains_with_the_classical_methods_params() -> None:
+    options = replace(OPTIONS, transfer=True, params={"class_weight": "balanced"})
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
+    assert hybrid.classical_recipe == {"class_weight": "balanced", "select": "loss", "restarts": 0}
+    hybrid.set_params(classical_recipe={"colour": "red"})
+    with pytest.raises(ParameterError, match="classical_recipe=.*a mapping of training param"):
+        hybrid.fit(*lean_frames(30))

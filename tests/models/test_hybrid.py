@@ -8,11 +8,15 @@ torch = pytest.importorskip("torch")
 
 from qdcnn.errors import ParameterError  # noqa: E402
 from qdcnn.models.hybrid import (  # noqa: E402
+    CLASSICAL_TRUNKS,
     HYBRIDS,
     build_hybrid,
+    pilotnet_as_trunk,
     pilotnet_trunk,
     trainable_parameters,
 )
+from qdcnn.models.specs import HYBRID_NETWORKS  # noqa: E402
+from qdcnn.models.transfer import load_trunk  # noqa: E402
 from qdcnn.models.pilotnet import PilotNet  # noqa: E402
 from qdcnn.models.quantum_layers import QuantumHead, RingMLPHead  # noqa: E402
 from qdcnn.quantum.noise import NoiseSpec  # noqa: E402
@@ -59,6 +63,20 @@ def test_trunk_is_pilotnet_without_its_class_layer() -> None:
     torch.testing.assert_close(trunk(x), expected)
     with pytest.raises(ParameterError, match="input_size"):
         pilotnet_trunk(3, (20, 20))
+
+
+@pytest.mark.parametrize("context", [1, 3])
+def test_a_trained_pilotnet_is_qdcnn_head_with_a_linear_head(context: int) -> None:
+    torch.manual_seed(4)
+    net = PilotNet(in_channels=3 * context).eval()
+    hybrid = build_hybrid("qdcnn-head", in_channels=3 * context, head="linear").eval()
+    load_trunk(hybrid, pilotnet_as_trunk(net))
+    hybrid.head.readout.load_state_dict(net.classifier[-1].state_dict())
+    x = torch.randn(2, 3 * context, 66, 200)
+    torch.testing.assert_close(hybrid(x), net(x), rtol=0, atol=0)
+    assert {h.classical for h in HYBRID_NETWORKS} - {None} <= set(CLASSICAL_TRUNKS)
+    with pytest.raises(ParameterError, match="network='HybridNet' is invalid.*a PilotNet"):
+        pilotnet_as_trunk(hybrid)
 
 
 def test_quantum_head_learns_three_classes() -> None:

@@ -16,6 +16,7 @@ from qdcnn.models import transfer  # noqa: E402
 from qdcnn.models.hybrid import HybridNet, _make_head  # noqa: E402
 from qdcnn.models.trainer import FrameSamples, Trainer, TrainSettings  # noqa: E402
 from qdcnn.models.transfer import (  # noqa: E402
+    ClassicalStage,
     cached_epochs,
     cached_trunk,
     data_key,
@@ -104,6 +105,26 @@ def test_later_stages_take_a_quarter_of_the_epochs_stage_one_ran() -> None:
     assert ran < 25  # stopped early
     later = max(1, ran // 4)
     assert [r["stage"] for r in fresh.history][ran:] == ["head"] * later + ["finetune"] * later
+
+
+def test_stage_one_can_be_another_networks_own_training() -> None:
+    def plain(seed: int) -> nn.Module:  # the hybrid's trunk and a linear class layer
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            return nn.Sequential(nn.Flatten(), nn.Linear(3 * 4 * 4, 6), nn.ELU(), nn.Linear(6, 3))
+
+    def trunk_of(network: nn.Module) -> dict[str, torch.Tensor]:
+        return {f"trunk.1.{k}": v.clone() for k, v in network[1].state_dict().items()}
+
+    own = TrainSettings(epochs=3, batch_size=8, lr=5e-2, num_threads=1)
+    stage = ClassicalStage(plain, own, trunk_of)
+    t = trainer(epochs=8)  # the hybrid's own settings: not stage 1's
+    key = data_key(samples(), own, "plain")
+    result, trunk = fit_transfer(t, build, "quantum", samples(), cache_key=key, classical=stage)
+    assert [r["stage"] for r in result.history] == ["classical"] * 3 + ["head", "finetune"]
+    alone = Trainer(own, transform=lambda x: x.float() / 255.0).fit(plain(0), samples())
+    assert all(torch.equal(trunk[k], v) for k, v in trunk_of(alone.network).items())
+    assert cached_trunk(key) is trunk and cached_epochs(key) == 3
 
 
 def test_a_trunk_of_another_network_is_refused() -> None:

@@ -331,6 +331,18 @@ HYBRID_RECIPE: Mapping[str, Any] = {
 HYBRID_KINDS: tuple[str, ...] = ("hybrid", "hybrid-twin", "hybrid-ablation")
 
 
+def classical_recipe(params: Mapping[str, Any]) -> dict[str, Any]:
+    """What the classical method (``dnn-pilotnet``) trains with where the hybrid recipe
+    differs: the estimator's defaults, or ``params`` where given. Transfer's stage 1 then
+    trains exactly as that method does, and shares its trunk."""
+    import inspect
+
+    from qdcnn.models.training import CNNDirectionClassifier
+
+    defaults = inspect.signature(CNNDirectionClassifier).parameters
+    return {k: params.get(k, defaults[k].default) for k in HYBRID_RECIPE}
+
+
 def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> _Builder:
     hybrid = network_params is not None
 
@@ -340,7 +352,12 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
         staged: dict[str, Any] = {}
         if hybrid:
             from_model = None if options.from_model is None else str(options.from_model)
-            staged = {**HYBRID_RECIPE, "transfer": options.transfer, "trunk_from": from_model}
+            staged = {
+                **HYBRID_RECIPE,
+                "transfer": options.transfer,
+                "trunk_from": from_model,
+                "classical_recipe": classical_recipe(options.params),
+            }
         estimator = CNNDirectionClassifier(
             arch,
             epochs=options.epochs,

@@ -87,6 +87,28 @@ def pilotnet_trunk(
     return nn.Sequential(features, *dense), last.out_features
 
 
+def pilotnet_as_trunk(network: nn.Module) -> dict[str, torch.Tensor]:
+    """A :class:`PilotNet`'s layers without its class layer, under the names they have in
+    a hybrid's :func:`pilotnet_trunk` (``trunk.0`` the convolutions, then the dense
+    layers): the trunk ``qdcnn-head`` takes from a trained PilotNet (copies, on the CPU).
+    """
+    if not isinstance(network, PilotNet):
+        raise ParameterError("network", type(network).__name__, "a PilotNet")
+    parts = [network.features, *list(network.classifier)[:-1]]
+    return {
+        f"trunk.{i}.{key}": value.detach().cpu().clone()
+        for i, module in enumerate(parts)
+        for key, value in module.state_dict().items()
+    }
+
+
+#: Classical network -> its trunk under a hybrid's names (:attr:`HybridNetwork.classical
+#: <qdcnn.models.specs.HybridNetwork.classical>`).
+CLASSICAL_TRUNKS: dict[str, Callable[[nn.Module], dict[str, torch.Tensor]]] = {
+    "pilotnet": pilotnet_as_trunk,
+}
+
+
 def _make_head(
     head: str,
     in_features: int,

@@ -107,6 +107,10 @@ class HybridNetwork:
         Smallest training batch (2 for networks with BatchNorm).
     ablated : bool
         Also registered with each head of :data:`HEAD_ABLATIONS` (:attr:`ablations`).
+    classical : str or None
+        The registered classical network that is this hybrid with a linear head, if any
+        (``pilotnet`` for ``qdcnn-head``): the transfer recipe's stage 1 is that network's
+        own training, shared with its method (``dnn-pilotnet``).
     """
 
     name: str
@@ -114,6 +118,7 @@ class HybridNetwork:
     summary: str
     min_batch_size: int = 1
     ablated: bool = False
+    classical: str | None = None
 
     @property
     def twin(self) -> str:
@@ -135,6 +140,7 @@ HYBRID_NETWORKS: tuple[HybridNetwork, ...] = (
         "qdcnn_head",
         "PilotNet trunk, then a 4-qubit variational quantum head",
         ablated=True,
+        classical="pilotnet",
     ),
     HybridNetwork(
         "qdcnn-uuconv",
@@ -155,6 +161,12 @@ def hybrid_of(name: str) -> HybridNetwork | None:
     """The hybrid that ``name`` (a hybrid's name or its twin's) belongs to, else ``None``."""
     base = name.removesuffix(_TWIN_SUFFIX)
     return next((h for h in HYBRID_NETWORKS if h.name == base), None)
+
+
+def classical_network(arch: str) -> str | None:
+    """The classical network whose training is hybrid ``arch``'s transfer stage 1, if any."""
+    hybrid = next((h for h in HYBRID_NETWORKS if h.name == arch), None)
+    return None if hybrid is None else hybrid.classical
 
 
 def network_label(arch: str, head: object = None) -> str:

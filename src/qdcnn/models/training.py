@@ -46,7 +46,7 @@ from qdcnn.models.samples import (
     context_windows,
     split_train_val,
 )
-from qdcnn.models.specs import network_label
+from qdcnn.models.specs import classical_network, network_label
 from qdcnn.quantum.noise import GateNoise, is_noise
 
 if TYPE_CHECKING:
@@ -82,6 +82,24 @@ _HEAD_OPTIONS = (
 #: head; files without the field hold the original (undressed) heads.
 HEAD_FORMAT = 2
 _MAX_CONTEXT = 64
+#: Parameters that are training settings (those ``classical_recipe`` may set).
+_TRAINING_FIELDS = (
+    "epochs",
+    "batch_size",
+    "lr",
+    "weight_decay",
+    "val_fraction",
+    "val_blocks",
+    "val_gap",
+    "patience",
+    "augment",
+    "max_shift",
+    "class_weight",
+    "label_smoothing",
+    "lr_schedule",
+    "select",
+    "restarts",
+)
 
 
 def _torch(purpose: str) -> Any:
@@ -266,9 +284,15 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         validation predictions are all one class (:meth:`Trainer.fit
         <qdcnn.models.trainer.Trainer.fit>`); ``restarts_`` says what happened.
     transfer : bool
-        Hybrid networks only: train in stages (:mod:`qdcnn.models.transfer`): the trunk
-        with a linear head for ``epochs`` epochs, then the network's own head on the
-        frozen trunk, then everything at a tenth of ``lr``.
+        Hybrid networks only: train in stages (:mod:`qdcnn.models.transfer`): the
+        classical network (``qdcnn-head``: PilotNet, with ``classical_recipe``; the other
+        hybrids: their trunk with a linear head) for ``epochs`` epochs, then the network's
+        own head on the frozen trunk, then everything at a tenth of ``lr``.
+    classical_recipe : mapping or None
+        Hybrid networks with a classical network only: the training parameters of its
+        own training that differ from this estimator's (such as ``class_weight``).
+        Stage 1 trains with them, so it is the classical method's training of the same
+        frames and seed, and a trunk that training kept is reused.
     trunk_from : path or None
         Hybrid networks only: a saved network of the same architecture, input size and
         context (a model file of this class or of ``train-direction``) whose trunk
@@ -362,6 +386,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         restarts: int = 0,
         transfer: bool = False,
         trunk_from: str | Path | None = None,
+        classical_recipe: Mapping[str, Any] | None = None,
         tta: bool = False,
         weights: str | Path | None = None,
         device: str = "auto",
@@ -393,6 +418,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.restarts = restarts
         self.transfer = transfer
         self.trunk_from = trunk_from
+        self.classical_recipe = classical_recipe
         self.tta = tta
         self.weights = weights
         self.device = device
@@ -450,6 +476,13 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         check_bool("transfer", self.transfer)
         if self.trunk_from is not None and not isinstance(self.trunk_from, str | os.PathLike):
             raise ParameterError("trunk_from", self.trunk_from, "a model file path or None")
+        recipe = self.classical_recipe
+        if recipe is not None and not (
+            isinstance(recipe, Mapping) and set(recipe) <= set(_TRAINING_FIELDS)
+        ):
+            raise ParameterError(
+                "classical_recipe", recipe, "None or a mapping of training parameters"
+            )
         staged = self.transfer or self.trunk_from is not None
         if staged and not _is_hybrid(self.arch):
             what = "transfer" if self.transfer else "trunk_from"
@@ -556,6 +589,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
                 result = trainer.fit(
                     network, samples, extra=extra, extra_of=extra_of, rebuild=rebuild
                 )
+                if extra is None:
+                    self._keep_classical_trunk(samples, settings, result)
         self._set_fitted(
             result.network, spec, result.history, result.best_epoch, result.restarts, result.seed
         )
@@ -584,12 +619,16 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self, trainer: Any, samples: FrameSamples, trunk: Any, fit_kw: dict[str, Any]
     ) -> Any:
         """:func:`qdcnn.models.transfer.fit_transfer` with this estimator's networks."""
-        from qdcnn.models.transfer import data_key, fit_transfer
+        from qdcnn.models.transfer import fit_transfer
 
         head = self._head() or "quantum"
-        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
-        what = repr((self.arch, int(self.context), self.weights, sorted(common.items())))
-        key = None if fit_kw.get("extra") is not None else data_key(samples, trainer.settings, what)
+        first, classical = self, None
+        arch = classical_network(self.arch)
+        if arch is not None:
+            first = self._classical_estimator(arch)
+            classical = first._classical_stage()
+        settings = trainer.settings if classical is None else classical.settings
+        key = None if fit_kw.get("extra") is not None else first._trunk_key(samples, settings)
         result, _ = fit_transfer(
             trainer,
             self._build,
@@ -598,8 +637,56 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             trunk=trunk,
             cache_key=key,
             fit_kw=fit_kw,
+            classical=classical,
         )
         return result
+
+    def _trunk_key(self, samples: FrameSamples, settings: TrainSettings) -> str:
+        """Where a trunk trained by this estimator on ``samples`` is cached."""
+        from qdcnn.models.transfer import data_key
+
+        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
+        what = repr((self.arch, int(self.context), self.weights, sorted(common.items())))
+        return data_key(samples, settings, what)
+
+    def _classical_estimator(self, arch: str) -> CNNDirectionClassifier:
+        """The classical network ``arch`` with this estimator's settings and its
+        ``classical_recipe``: the estimator its own method would build."""
+        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
+        params = {**self.get_params(deep=False), **dict(self.classical_recipe or {})}
+        params.update(
+            arch=arch,
+            network_params=common or None,
+            transfer=False,
+            trunk_from=None,
+            classical_recipe=None,
+            noise=None,
+            train_noise=None,
+        )
+        return CNNDirectionClassifier(**params)
+
+    def _classical_stage(self) -> Any:
+        """Stage 1 of a transfer as this (classical) estimator's own training."""
+        from qdcnn.models.hybrid import CLASSICAL_TRUNKS
+        from qdcnn.models.transfer import ClassicalStage
+
+        settings = self._checked()[1]
+        return ClassicalStage(partial(self._build, None), settings, CLASSICAL_TRUNKS[self.arch])
+
+    def _keep_classical_trunk(
+        self, samples: FrameSamples, settings: TrainSettings, result: Any
+    ) -> None:
+        """Keep the trunk of a trained classical network that a hybrid's transfer recipe
+        starts from (``dnn-pilotnet`` for ``qdcnn-head``), for the hybrids of that fold."""
+        from qdcnn.models.specs import HYBRID_NETWORKS
+
+        if not any(h.classical == self.arch for h in HYBRID_NETWORKS):
+            return
+        from qdcnn.models.hybrid import CLASSICAL_TRUNKS
+        from qdcnn.models.transfer import keep_trunk
+
+        trunk = CLASSICAL_TRUNKS[self.arch](result.network)
+        keep_trunk(self._trunk_key(samples, settings), trunk, len(result.history))
 
     def read_trunk(self) -> dict[str, Any]:
         """The front and trunk weights of the ``trunk_from`` network, checked against this

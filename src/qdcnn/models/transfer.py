@@ -1,22 +1,24 @@
 """Transfer training of a hybrid network: the standard two-stage recipe for a dressed head.
 
-Stage 1 trains the classical network: the hybrid's trunk with a linear head (for
-``qdcnn-head`` that is PilotNet). Stage 2 puts the hybrid's own head (quantum, its twin
-or an ablation) on that trunk and trains the head alone, the trunk frozen. Stage 3
-fine-tunes everything at a tenth of the learning rate (Mari et al. 2020, "Transfer
-learning in hybrid classical-quantum neural networks"; PennyLane's quantum transfer
-learning demo trains stage 2 only).
+Stage 1 trains the classical network: for ``qdcnn-head`` PilotNet itself, trained as
+the ``dnn-pilotnet`` method trains it (:class:`ClassicalStage`); for the other hybrids
+their trunk with a linear head, trained with the hybrid's settings. Stage 2 puts the
+hybrid's own head (quantum, its twin or an ablation) on that trunk and trains the head
+alone, the trunk frozen. Stage 3 fine-tunes everything at a tenth of the learning rate
+(Mari et al. 2020, "Transfer learning in hybrid classical-quantum neural networks";
+PennyLane's quantum transfer learning demo trains stage 2 only).
 
 The stage-1 trunk depends on the training frames, the seed and the settings, not on the
 head, so it is kept in memory (:func:`cached_trunk`): a hybrid, its twin and the ablations
-trained on the same fold with the same seed share one classical training.
+trained on the same fold with the same seed share one classical training, and with
+PilotNet as stage 1 that training is the ``dnn-pilotnet`` run of the same fold and seed.
 """
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any
 
@@ -36,7 +38,26 @@ HybridBuilder = Callable[[str, int], nn.Module]
 TRUNK_PARTS: tuple[str, str] = ("front", "trunk")
 #: key -> (stage-1 trunk, epochs stage 1 ran)
 _TRUNKS: dict[str, tuple[dict[str, torch.Tensor], int]] = {}
-_MAX_CACHED = 16
+_MAX_CACHED = 32
+
+
+@dataclass(frozen=True)
+class ClassicalStage:
+    """Stage 1 as the training of another (classical) network whose trunk the hybrid takes.
+
+    Attributes
+    ----------
+    build : callable
+        ``build(seed)``: a fresh classical network.
+    settings : TrainSettings
+        Its own training settings (those its own method trains with).
+    trunk_of : callable
+        ``trunk_of(network)``: its trunk under the hybrid's names (:func:`trunk_state`'s).
+    """
+
+    build: Callable[[int], nn.Module]
+    settings: TrainSettings
+    trunk_of: Callable[[nn.Module], dict[str, torch.Tensor]]
 
 
 def stage_epochs(epochs: int) -> tuple[int, int]:
@@ -116,6 +137,7 @@ def fit_transfer(
     trunk: dict[str, torch.Tensor] | None = None,
     cache_key: str | None = None,
     fit_kw: dict[str, Any] | None = None,
+    classical: ClassicalStage | None = None,
 ) -> tuple[TrainResult, dict[str, torch.Tensor]]:
     """Run the three stages (stage 1 skipped when ``trunk`` is given or cached).
 
@@ -135,6 +157,9 @@ def fit_transfer(
         Where stage 1's trunk is kept and looked up (:func:`data_key`).
     fit_kw : dict or None
         Further arguments of :meth:`Trainer.fit` (extra samples).
+    classical : ClassicalStage or None
+        Stage 1 as another network's own training; by default the hybrid with a linear
+        head, trained with ``trainer``'s settings.
 
     Returns
     -------
@@ -150,10 +175,8 @@ def fit_transfer(
     if kept is not None:
         trunk, ran = kept
     if trunk is None:
-        first = _stage(
-            trainer, s, "classical", build("linear", s.seed), samples, kw, partial(build, "linear")
-        )
-        trunk, ran = trunk_state(first.network), len(first.history)
+        first = _classical_stage(trainer, build, classical, samples, kw)
+        trunk, ran = _trunk_of(first.network, classical), len(first.history)
         records += _staged(first, "classical")
         restarts += [{**r, "stage": "classical"} for r in first.restarts]
         if cache_key is not None:
@@ -180,6 +203,25 @@ def fit_transfer(
         restarts=restarts,
     )
     return result, trunk
+
+
+def _classical_stage(
+    trainer: Trainer,
+    build: HybridBuilder,
+    classical: ClassicalStage | None,
+    samples: FrameSamples,
+    kw: dict[str, Any],
+) -> TrainResult:
+    rebuild: Callable[[int], nn.Module]
+    if classical is None:
+        s, rebuild = trainer.settings, partial(build, "linear")
+    else:
+        s, rebuild = classical.settings, classical.build
+    return _stage(trainer, s, "classical", rebuild(s.seed), samples, kw, rebuild)
+
+
+def _trunk_of(network: nn.Module, classical: ClassicalStage | None) -> dict[str, torch.Tensor]:
+    return trunk_state(network) if classical is None else classical.trunk_of(network)
 
 
 def _stage(
