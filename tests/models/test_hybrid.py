@@ -15,10 +15,10 @@ from qdcnn.models.hybrid import (  # noqa: E402
     pilotnet_trunk,
     trainable_parameters,
 )
-from qdcnn.models.specs import HYBRID_NETWORKS  # noqa: E402
-from qdcnn.models.transfer import load_trunk  # noqa: E402
 from qdcnn.models.pilotnet import PilotNet  # noqa: E402
 from qdcnn.models.quantum_layers import QuantumHead, RingMLPHead  # noqa: E402
+from qdcnn.models.specs import HYBRID_NETWORKS  # noqa: E402
+from qdcnn.models.transfer import load_trunk  # noqa: E402
 from qdcnn.quantum.noise import NoiseSpec  # noqa: E402
 
 
