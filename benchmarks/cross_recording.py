@@ -126,6 +126,7 @@ def _record(
     wall: float,
     cpu: float,
     load: bool = True,
+    **extra: Any,
 ) -> None:
     timing = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
     timing[name] = {
@@ -135,6 +136,7 @@ def _record(
         "cold_cache": cold,
         "wall_seconds": round(wall, 1),
         "cpu_seconds": round(cpu, 1),
+        **extra,
     }
     if load:  # the machine's load as the run ended
         timing[name]["load_average_after"] = os.getloadavg()

@@ -96,19 +96,25 @@ def measure(args: argparse.Namespace) -> None:
             str(args.threads),
         ]
         wall, cpu = run_one(name, ["--data", spec], args.out, args.cache, common, with_fold_shares)
-        _record(args.out / "timing.json", name, methods, args.threads, False, wall, cpu)
-        _note_recipe(args.out / "timing.json", name)
+        # stage 1 is dnn-pilotnet's run: the hybrid's seconds count stages 2 and 3 only
+        _record(
+            args.out / "timing.json",
+            name,
+            methods,
+            args.threads,
+            False,
+            wall,
+            cpu,
+            commit=_commit(),
+            stage1="dnn-pilotnet",
+        )
 
 
-def _note_recipe(path: Path, name: str) -> None:
-    """Say in the timing file which commit ran and that stage 1 was ``dnn-pilotnet``'s run
-    (the hybrid's ``seconds`` then count stages 2 and 3 only)."""
-    timing = json.loads(path.read_text(encoding="utf-8"))
-    commit = subprocess.run(
+def _commit() -> str | None:
+    done = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
-    timing[name].update(commit=commit or None, stage1="dnn-pilotnet")
-    path.write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
+    )
+    return done.stdout.strip() or None
 
 
 def adopt(args: argparse.Namespace) -> None:
@@ -200,7 +206,7 @@ def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -
         rows.append(
             [
                 n,
-                t.get("commit") or "125fc9b",
+                t.get("commit", "not recorded"),
                 "PilotNet's run" if shared else "its own",
                 f"{pilot:.0f}",
                 f"{recipe:.0f}",

@@ -165,7 +165,7 @@ def hybrid_of(name: str) -> HybridNetwork | None:
 
 def classical_network(arch: str) -> str | None:
     """The classical network whose training is hybrid ``arch``'s transfer stage 1, if any."""
-    hybrid = next((h for h in HYBRID_NETWORKS if h.name == arch), None)
+    hybrid = hybrid_of(arch)
     return None if hybrid is None else hybrid.classical
 
 

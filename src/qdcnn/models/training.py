@@ -82,24 +82,9 @@ _HEAD_OPTIONS = (
 #: head; files without the field hold the original (undressed) heads.
 HEAD_FORMAT = 2
 _MAX_CONTEXT = 64
-#: Parameters that are training settings (those ``classical_recipe`` may set).
-_TRAINING_FIELDS = (
-    "epochs",
-    "batch_size",
-    "lr",
-    "weight_decay",
-    "val_fraction",
-    "val_blocks",
-    "val_gap",
-    "patience",
-    "augment",
-    "max_shift",
-    "class_weight",
-    "label_smoothing",
-    "lr_schedule",
-    "select",
-    "restarts",
-)
+#: Fields of the trainer's settings that say where and how a run goes, not how it
+#: trains (``classical_recipe`` may set every other field).
+_RUN_FIELDS = frozenset({"seed", "device", "num_threads", "checkpoint_dir"})
 
 
 def _torch(purpose: str) -> Any:
@@ -476,10 +461,13 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         check_bool("transfer", self.transfer)
         if self.trunk_from is not None and not isinstance(self.trunk_from, str | os.PathLike):
             raise ParameterError("trunk_from", self.trunk_from, "a model file path or None")
+        from dataclasses import fields
+
+        from qdcnn.models.trainer import TrainSettings
+
+        training = {f.name for f in fields(TrainSettings)} - _RUN_FIELDS
         recipe = self.classical_recipe
-        if recipe is not None and not (
-            isinstance(recipe, Mapping) and set(recipe) <= set(_TRAINING_FIELDS)
-        ):
+        if recipe is not None and not (isinstance(recipe, Mapping) and set(recipe) <= training):
             raise ParameterError(
                 "classical_recipe", recipe, "None or a mapping of training parameters"
             )
@@ -492,6 +480,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
     def _network_kw(self) -> dict[str, Any]:
         return dict(self.network_params or {})
+
+    def _trunk_network_kw(self) -> dict[str, Any]:
+        """The network parameters that are not the head's."""
+        return {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
 
     def _label(self) -> str:
         """The network's name on the progress bar; a hybrid's classical twin says so."""
@@ -607,8 +599,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
         kw = self._network_kw()
         if head is not None and head != kw.get("head", "quantum"):
-            kw = {k: v for k, v in kw.items() if k not in _HEAD_OPTIONS}
-            kw["head"] = head
+            kw = {**self._trunk_network_kw(), "head": head}
         network = build_network(
             self.arch, 3 * int(self.context), weights=self.weights, seed=seed, **kw
         )
@@ -645,18 +636,17 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """Where a trunk trained by this estimator on ``samples`` is cached."""
         from qdcnn.models.transfer import data_key
 
-        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
+        common = self._trunk_network_kw()
         what = repr((self.arch, int(self.context), self.weights, sorted(common.items())))
         return data_key(samples, settings, what)
 
     def _classical_estimator(self, arch: str) -> CNNDirectionClassifier:
         """The classical network ``arch`` with this estimator's settings and its
         ``classical_recipe``: the estimator its own method would build."""
-        common = {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
         params = {**self.get_params(deep=False), **dict(self.classical_recipe or {})}
         params.update(
             arch=arch,
-            network_params=common or None,
+            network_params=self._trunk_network_kw() or None,
             transfer=False,
             trunk_from=None,
             classical_recipe=None,
@@ -678,12 +668,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     ) -> None:
         """Keep the trunk of a trained classical network that a hybrid's transfer recipe
         starts from (``dnn-pilotnet`` for ``qdcnn-head``), for the hybrids of that fold."""
-        from qdcnn.models.specs import HYBRID_NETWORKS
-
-        if not any(h.classical == self.arch for h in HYBRID_NETWORKS):
-            return
         from qdcnn.models.hybrid import CLASSICAL_TRUNKS
         from qdcnn.models.transfer import keep_trunk
+
+        if self.arch not in CLASSICAL_TRUNKS:
+            return
 
         trunk = CLASSICAL_TRUNKS[self.arch](result.network)
         keep_trunk(self._trunk_key(samples, settings), trunk, len(result.history))
