@@ -290,12 +290,26 @@ def test_a_hybrid_saved_before_the_dressed_heads_loads_as_it_was(tmp_path: Path)
     assert again.model_.head.dressed
     np.testing.assert_array_equal(again.predict_proba(FRAMES), new.predict_proba(FRAMES))
     assert again.restarts_ == [] and again.seed_ == 0
+    assert again.model_.head.entangler == "cz"
+
+
+def test_a_dressed_hybrid_of_head_format_2_loads_with_its_cx_ring(tmp_path: Path) -> None:
+    old = hybrid(network_params={"entangler": "cx"})
+    meta, arrays = old.fitted_state()
+    meta["head_format"] = 2  # what dressed hybrids saved before the CZ ring hold
+    save_model(tmp_path / "v2.safetensors", MODEL_KIND, MODEL_FORMAT_VERSION, meta, arrays)
+    loaded = CNNDirectionClassifier.load(tmp_path / "v2.safetensors")
+    assert loaded.model_.head.entangler == "cx"
+    np.testing.assert_array_equal(loaded.predict_proba(FRAMES), old.predict_proba(FRAMES))
+    as_cz = hybrid()
+    as_cz.model_.load_state_dict(old.model_.state_dict())
+    assert not np.allclose(as_cz.predict_proba(FRAMES), old.predict_proba(FRAMES))
 
 
 def test_hybrid_head_format_and_restarts_are_checked(tmp_path: Path) -> None:
     source = hybrid().save(tmp_path / "new.safetensors")
-    bad = rewrite(source, tmp_path / "future.safetensors", meta={"head_format": 3})
-    assert "head_format 3 is not one this qdcnn reads" in load_error(bad)
+    bad = rewrite(source, tmp_path / "future.safetensors", meta={"head_format": 4})
+    assert "head_format 4 is not one this qdcnn reads" in load_error(bad)
     # an undressed network under a dressed header: the arrays do not fit
     old = hybrid(network_params={"dressed": False}).save(tmp_path / "old.safetensors")
     header, stored = load_model(old, MODEL_KIND, {MODEL_FORMAT_VERSION})

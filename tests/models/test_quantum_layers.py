@@ -41,43 +41,57 @@ def _one_torch_thread():  # type: ignore[no-untyped-def]
     torch.set_num_threads(old)
 
 
-def _head(n: int, layers: int, reupload: bool = False, noise=None) -> QuantumHead:  # type: ignore[no-untyped-def]
+def _head(n: int, layers: int, reupload: bool = False, noise=None, entangler="cx") -> QuantumHead:  # type: ignore[no-untyped-def]
     """The undressed head: its uniform random layer angles exercise the whole circuit."""
     torch.manual_seed(n + 10 * layers)
-    return QuantumHead(5, n, layers, reupload=reupload, noise=noise, dressed=False).double()
+    return QuantumHead(
+        5, n, layers, reupload=reupload, noise=noise, dressed=False, entangler=entangler
+    ).double()
 
 
-def _pennylane_head(n: int, layers: int, reupload: bool):  # type: ignore[no-untyped-def]
+def _pennylane_head(n: int, layers: int, reupload: bool, entangler: str = "cx"):  # type: ignore[no-untyped-def]
     qml = pytest.importorskip("pennylane")
     dev = qml.device("default.qubit", wires=n)
+    gate = {"cx": qml.CNOT, "cz": qml.CZ}[entangler]
 
     @qml.qnode(dev, interface="torch", diff_method="backprop")
     def circuit(x, w):  # type: ignore[no-untyped-def]
         if not reupload:
             qml.AngleEmbedding(x, wires=range(n), rotation="Y")
-            qml.StronglyEntanglingLayers(w, wires=range(n))
+            qml.StronglyEntanglingLayers(w, wires=range(n), imprimitive=gate)
         else:
             for layer, r in enumerate(entangler_ranges(n, layers)):
                 qml.AngleEmbedding(x, wires=range(n), rotation="Y")
-                qml.StronglyEntanglingLayers(w[layer : layer + 1], wires=range(n), ranges=[r])
+                qml.StronglyEntanglingLayers(
+                    w[layer : layer + 1], wires=range(n), ranges=[r], imprimitive=gate
+                )
         return [qml.expval(qml.PauliZ(i)) for i in range(n)]
 
     return circuit
 
 
 @pytest.mark.parametrize(
-    ("n", "layers", "reupload"),
-    [(1, 2, False), (2, 1, False), (3, 3, False), (4, 2, False), (4, 2, True), (3, 3, True)],
+    ("n", "layers", "reupload", "entangler"),
+    [
+        (1, 2, False, "cx"),
+        (2, 1, False, "cx"),
+        (3, 3, False, "cx"),
+        (4, 2, False, "cx"),
+        (4, 2, True, "cx"),
+        (3, 3, True, "cx"),
+        (4, 2, False, "cz"),
+        (3, 3, True, "cz"),
+    ],
 )
 def test_head_circuit_equals_pennylane_values_and_gradients(
-    n: int, layers: int, reupload: bool
+    n: int, layers: int, reupload: bool, entangler: str
 ) -> None:
-    head = _head(n, layers, reupload)
+    head = _head(n, layers, reupload, entangler=entangler)
     emb = torch.randn(6, 5, dtype=torch.float64)
     x = head.angles(emb).detach().requires_grad_(True)
     w = head.weights.detach().clone().requires_grad_(True)
     ours = head.circuit.expectations(x, w.reshape(-1))
-    pl = torch.stack(list(_pennylane_head(n, layers, reupload)(x, w)), dim=-1)
+    pl = torch.stack(list(_pennylane_head(n, layers, reupload, entangler)(x, w)), dim=-1)
     np.testing.assert_allclose(ours.detach().numpy(), pl.detach().numpy(), atol=1e-12)
     coef = torch.randn(6, n, dtype=torch.float64)
     g_ours = torch.autograd.grad((ours * coef).sum(), (x, w))
@@ -356,8 +370,8 @@ def test_dressed_heads_keep_equal_parameter_counts() -> None:
 
 def test_product_ablation_has_no_entangling_gate_and_factorises() -> None:
     head = QuantumHead(5, 4, 3, entangle=False).double()
-    assert not any(g.name == "cx" for g in head.circuit.template.gates)
-    assert any(g.name == "cx" for g in QuantumHead(5, 4, 3).circuit.template.gates)
+    assert not any(len(g.qubits) == 2 for g in head.circuit.template.gates)
+    assert any(g.name == "cz" for g in QuantumHead(5, 4, 3).circuit.template.gates)
     emb = torch.randn(6, 5, dtype=torch.float64)
     circuits = head.circuits(emb)
     assert all(len(g.qubits) == 1 for g in circuits.gates)
@@ -385,6 +399,32 @@ def test_fixed_ablation_keeps_its_circuit_and_trains_the_rest() -> None:
     assert torch.equal(head.weights, before)
     assert head.readout.weight.grad is not None and head.projection.weight.grad is not None
     assert "weights" in head.state_dict()  # saved with the model
+
+
+def test_dressed_cz_head_starts_at_the_identity_and_learns_entanglement() -> None:
+    """With zero layer angles the CZ ring leaves every <Z_i> at the encoding's -sin(x_i)
+    (a CX ring turns it into a parity of several qubits); the gradient of the second
+    layer's angles then carries the neighbours' encodings, through the entanglement."""
+    emb = torch.randn(8, 5, dtype=torch.float64)
+    heads = {e: QuantumHead(5, 4, 2, entangler=e).double() for e in ("cz", "cx")}
+    for head in heads.values():
+        with torch.no_grad():
+            head.weights.zero_()
+            head.projection.load_state_dict(heads["cz"].projection.state_dict())
+    x = heads["cz"].angles(emb) - math.pi / 2
+    torch.testing.assert_close(heads["cz"].expectations(emb), -torch.sin(x))
+    assert not torch.allclose(heads["cx"].expectations(emb), -torch.sin(x), atol=0.05)
+    product = QuantumHead(5, 4, 2, entangle=False).double()
+    with torch.no_grad():
+        product.weights.zero_()
+        product.projection.load_state_dict(heads["cz"].projection.state_dict())
+    grads = [
+        torch.autograd.grad(h.expectations(emb)[:, 0].sum(), h.weights)[0]
+        for h in (heads["cz"], product)
+    ]
+    # layer 1's theta acts before any entangler: the same; layer 2's sees the CZ ring
+    torch.testing.assert_close(grads[0][0, 0, 1], grads[1][0, 0, 1])
+    assert abs(float(grads[0][1, 0, 1] - grads[1][1, 0, 1])) > 1e-2
 
 
 def test_dressed_encoding_keeps_the_sign_of_the_projection() -> None:

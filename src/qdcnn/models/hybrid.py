@@ -121,10 +121,13 @@ def _make_head(
     num_classes: int = 3,
     readout_gain: float | None = None,
     dressed: bool = True,
+    entangler: str | None = None,
 ) -> nn.Module:
     """The head ``head`` names (:data:`~qdcnn.models.specs.ALL_HEADS`): the quantum head,
     its classical twin, or an ablation (``product``: no entangling gates; ``fixed``: a
-    fixed random circuit; ``linear``: one linear layer). Only circuits take shots and noise.
+    fixed random circuit; ``linear``: one linear layer). Only circuits take shots and noise;
+    ``entangler`` (the circuit's two-qubit gate) is ignored by the heads without a circuit,
+    so a hybrid and its twin share their network parameters.
     """
     head = check_choice("head", head, ALL_HEADS)
     if head in ("quantum", "product", "fixed"):
@@ -139,6 +142,7 @@ def _make_head(
             readout_gain=readout_gain,
             dressed=dressed,
             entangle=head != "product",
+            entangler=entangler,
             trainable_circuit=head != "fixed",
         )
     for name, value in (("shots", shots), ("noise", noise), ("reupload", reupload or None)):

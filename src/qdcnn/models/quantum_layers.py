@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from qdcnn._optional import require
 from qdcnn._validation import (
     check_bool,
+    check_choice,
     check_float,
     check_int,
     check_optional_shots,
@@ -35,7 +36,12 @@ from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.simulator import unitary
-from qdcnn.quantum.templates import head_circuit, head_template, random_layers_template
+from qdcnn.quantum.templates import (
+    ENTANGLERS,
+    head_circuit,
+    head_template,
+    random_layers_template,
+)
 from qdcnn.quantum.torchsim import MAX_QUBITS, TorchCircuit
 from qdcnn.quantum.torchsim.measure import sampled, z_signs
 
@@ -123,7 +129,8 @@ class QuantumHead(_DressedHead):
     to ``(-pi, pi)`` (:class:`_DressedHead`: a trainable bounded input scale when
     ``dressed``). Qubit ``i`` gets ``RY(x_i)``; then ``n_layers`` StronglyEntanglingLayers
     (``Rot(phi, theta, omega)`` on each qubit, then ``CX(i, (i + r) mod n)`` with
-    ``r = (l mod (n - 1)) + 1``; no CNOTs on one qubit), optionally re-uploading
+    ``r = (l mod (n - 1)) + 1``, or ``CZ`` on those pairs; none on one qubit), optionally
+    re-uploading
     ``RY(x_i)`` before every layer [2]_. The read-out ``<Z_i>`` of every qubit goes,
     scaled (a trainable scale and bias per qubit when ``dressed``, else the fixed
     ``readout_gain``), through a linear map to the classes. Without re-uploading the
@@ -131,8 +138,10 @@ class QuantumHead(_DressedHead):
     ``StronglyEntanglingLayers``; ``weights`` has PennyLane's shape ``(n_layers, n_qubits, 3)``.
     Dressed, the weights start near the identity (normal, standard deviation
     :data:`NEAR_IDENTITY_STD`, from torch's seeded generator) and qubit ``i`` gets
-    ``RY(pi / 2 + x_i)`` (:data:`ENCODING_OFFSET`); undressed, the weights are uniform in
-    ``[0, 2 pi)`` (PennyLane's initialisation) and the encoding is ``RY(x_i)``.
+    ``RY(pi / 2 + x_i)`` (:data:`ENCODING_OFFSET`), and the ring is of ``CZ``, so the
+    whole circuit starts near the identity on ``<Z_i>`` (a ``CX`` ring would not:
+    ``docs/hybrid-collapse.md``); undressed, the weights are uniform in ``[0, 2 pi)``
+    (PennyLane's initialisation), the encoding is ``RY(x_i)`` and the ring is of ``CX``.
 
     Parameters
     ----------
@@ -161,7 +170,9 @@ class QuantumHead(_DressedHead):
         The dressed head (trainable input scale, output scale and bias, near-identity
         start), or the original one.
     entangle : bool
-        ``False``: no CNOTs, a product state (the ``-noent`` ablation).
+        ``False``: no entangling gates, a product state (the ``-noent`` ablation).
+    entangler : {'cx', 'cz'} or None
+        The ring's two-qubit gate; ``None``: ``'cz'`` dressed, ``'cx'`` undressed.
     trainable_circuit : bool
         ``False``: the layer angles are a fixed random draw (uniform in ``[0, 2 pi)``,
         seeded by ``circuit_seed``) kept as a buffer; only the encoding and the
@@ -184,6 +195,7 @@ class QuantumHead(_DressedHead):
         *,
         dressed: bool = True,
         entangle: bool = True,
+        entangler: str | None = None,
         trainable_circuit: bool = True,
         circuit_seed: int = 0,
     ) -> None:
@@ -192,6 +204,10 @@ class QuantumHead(_DressedHead):
         self.n_layers = check_int("n_layers", n_layers, 1)
         self.reupload = check_bool("reupload", reupload)
         self.entangle = check_bool("entangle", entangle)
+        default = "cz" if self.dressed else "cx"
+        self.entangler = check_choice(
+            "entangler", default if entangler is None else entangler, ENTANGLERS
+        )
         self.shots = check_optional_shots(shots)
         self.noise = noise
         shape = (self.n_layers, self.n_qubits, 3)
@@ -213,9 +229,10 @@ class QuantumHead(_DressedHead):
         return x + ENCODING_OFFSET if self.dressed else x
 
     def _template(self) -> Any:
-        return head_template(
-            self.n_qubits, self.n_layers, reupload=self.reupload, entangle=self.entangle
-        )
+        return head_template(self.n_qubits, self.n_layers, **self._circuit_options())
+
+    def _circuit_options(self) -> dict[str, Any]:
+        return {"reupload": self.reupload, "entangle": self.entangle, "entangler": self.entangler}
 
     def set_noise(self, noise: NoiseSpec | None) -> None:
         """Run the circuit under ``noise`` from now on (``None``: noise-free).
@@ -254,8 +271,7 @@ class QuantumHead(_DressedHead):
         circuits = head_circuit(
             x.detach().double().cpu().numpy(),
             self.weights.detach().double().cpu().numpy(),
-            reupload=self.reupload,
-            entangle=self.entangle,
+            **self._circuit_options(),
         )
         probs = run_probabilities(circuits, shots=shots, noise=self.noise, rng=self._shot_rng)
         return torch.as_tensor(z_expectations(probs), dtype=x.dtype, device=x.device)
@@ -265,7 +281,7 @@ class QuantumHead(_DressedHead):
         with torch.no_grad():
             x = self.angles(embedding).double().cpu().numpy()
         w = self.weights.detach().double().cpu().numpy()
-        return head_circuit(x, w, reupload=self.reupload, entangle=self.entangle)
+        return head_circuit(x, w, **self._circuit_options())
 
 
 def _default_gain(readout_gain: float | None, dressed: bool) -> float:

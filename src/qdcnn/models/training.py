@@ -77,10 +77,17 @@ _HEAD_OPTIONS = (
     "noise",
     "readout_gain",
     "dressed",
+    "entangler",
 )
-#: Version of the hybrid heads in a model file's header (``head_format``): 2 is the dressed
-#: head; files without the field hold the original (undressed) heads.
-HEAD_FORMAT = 2
+#: Version of the hybrid heads in a model file's header (``head_format``): 3 is the dressed
+#: head with a ``CZ`` ring, 2 the dressed head with a ``CX`` ring; files without the field
+#: hold the original (undressed) heads.
+HEAD_FORMAT = 3
+#: Network parameters each older ``head_format`` implies.
+_OLDER_HEAD_FORMATS: dict[int | None, dict[str, Any]] = {
+    None: {"dressed": False},
+    2: {"entangler": "cx"},
+}
 _MAX_CONTEXT = 64
 #: Fields of the trainer's settings that say where and how a run goes, not how it
 #: trains (``classical_recipe`` may set every other field).
@@ -949,18 +956,21 @@ def _classifier_from_meta(
 
 def _saved_head_format(meta: dict[str, Any], arch: str, source: object) -> dict[str, Any]:
     """Network parameters a file's ``head_format`` implies: a hybrid saved before the
-    dressed heads (no field) is rebuilt with ``dressed=False``; other values are refused."""
+    dressed heads (no field) is rebuilt with ``dressed=False``, one of format 2 with a
+    ``CX`` ring; other values are refused."""
     if not _is_hybrid(arch):
         return {}
-    if "head_format" not in meta:
-        return {"dressed": False}
-    if meta["head_format"] != HEAD_FORMAT:
-        raise InputError(
-            str(source),
-            f"header head_format {meta['head_format']!r} is not one this qdcnn reads "
-            f"({HEAD_FORMAT}, or none for the original heads)",
-        )
-    return {}
+    found = meta.get("head_format")
+    if found == HEAD_FORMAT:
+        return {}
+    if isinstance(found, int | None) and not isinstance(found, bool):
+        if found in _OLDER_HEAD_FORMATS:
+            return dict(_OLDER_HEAD_FORMATS[found])
+    raise InputError(
+        str(source),
+        f"header head_format {found!r} is not one this qdcnn reads "
+        f"({HEAD_FORMAT}, 2, or none for the original heads)",
+    )
 
 
 def _restarts_from_meta(

@@ -409,9 +409,19 @@ class TemplateBuilder:
     def cx(self, control: int, target: int) -> TemplateBuilder:
         return self.add("cx", (control, target))
 
+    def cz(self, a: int, b: int) -> TemplateBuilder:
+        return self.add("cz", (a, b))
+
     def cnot_ring(self, r: int = 1) -> TemplateBuilder:
         for control, target in cnot_ring(self.num_qubits, r):
             self.cx(control, target)
+        return self
+
+    def cz_ring(self, r: int = 1) -> TemplateBuilder:
+        """The CNOT ring's pairs with ``CZ`` in place of ``CX`` (PennyLane's
+        ``StronglyEntanglingLayers(..., imprimitive=qml.CZ)``)."""
+        for a, b in cnot_ring(self.num_qubits, r):
+            self.cz(a, b)
         return self
 
     def build(self, name: str = "circuit") -> CircuitTemplate:

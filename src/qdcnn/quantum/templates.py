@@ -48,8 +48,17 @@ def entangler_ranges(num_qubits: int, num_layers: int) -> tuple[int, ...]:
     return tuple((layer % (num_qubits - 1)) + 1 for layer in range(num_layers))
 
 
+#: The head's two-qubit gates: PennyLane's default ``CX`` or ``CZ`` (its ``imprimitive``).
+ENTANGLERS = ("cx", "cz")
+
+
 def head_template(
-    num_qubits: int, num_layers: int, *, reupload: bool = False, entangle: bool = True
+    num_qubits: int,
+    num_layers: int,
+    *,
+    reupload: bool = False,
+    entangle: bool = True,
+    entangler: str = "cx",
 ) -> CircuitTemplate:
     """The quantum head's circuit; inputs ``x`` (``n``), weights ``(L, n, 3)`` flattened.
 
@@ -57,7 +66,11 @@ def head_template(
     ``Rot`` on qubit ``i`` in layer ``l``: PennyLane's weight shape, row-major. With
     ``reupload=False`` this is exactly ``AngleEmbedding(x, rotation="Y")`` followed by
     ``StronglyEntanglingLayers(weights)``. ``entangle=False`` leaves out every CNOT: the
-    state stays a product state (the head's no-entanglement ablation).
+    state stays a product state (the head's no-entanglement ablation). ``entangler="cz"``
+    puts ``CZ`` on the CNOT ring's pairs (``imprimitive=qml.CZ``): ``CZ`` is diagonal, so
+    with layer angles at zero the read-out ``<Z_i>`` is the encoding's, as without
+    entanglement, and the layers' angles decide how much the entanglement acts; a ring of
+    ``CX`` rewrites every ``Z_i`` into a parity of several qubits whatever the angles.
 
     Examples
     --------
@@ -68,7 +81,10 @@ def head_template(
     """
     n = check_num_qubits(num_qubits)
     layers = _positive("num_layers", num_layers)
+    if entangler not in ENTANGLERS:
+        raise ParameterError("entangler", entangler, "'cx' or 'cz'")
     b = TemplateBuilder(n, num_inputs=n, num_weights=3 * layers * n)
+    ring = b.cz_ring if entangler == "cz" else b.cnot_ring
     for layer, r in enumerate(entangler_ranges(n, layers)):
         if layer == 0 or reupload:
             for q in range(n):
@@ -76,8 +92,9 @@ def head_template(
         for q in range(n):
             b.rot(q, n + 3 * (layer * n + q))
         if n > 1 and entangle:
-            b.cnot_ring(r)
-    name = "qdcnn_head" + ("_reupload" if reupload else "") + ("" if entangle else "_product")
+            ring(r)
+    name = "qdcnn_head" + ("_reupload" if reupload else "")
+    name += ("_cz" if entangler == "cz" else "") if entangle else "_product"
     return b.build(name)
 
 
@@ -96,7 +113,12 @@ def _head_shapes(
 
 
 def head_circuit(
-    x: ArrayLike, weights: ArrayLike, *, reupload: bool = False, entangle: bool = True
+    x: ArrayLike,
+    weights: ArrayLike,
+    *,
+    reupload: bool = False,
+    entangle: bool = True,
+    entangler: str = "cx",
 ) -> CircuitBatch:
     """The head's circuits for encoded angles ``x`` ``(B, n)`` and ``weights`` ``(L, n, 3)``.
 
@@ -105,7 +127,9 @@ def head_circuit(
     :func:`qdcnn.quantum.export.write_qasm3` (``index`` picks the sample).
     """
     xa, w = _head_shapes(x, weights)
-    template = head_template(xa.shape[1], w.shape[0], reupload=reupload, entangle=entangle)
+    template = head_template(
+        xa.shape[1], w.shape[0], reupload=reupload, entangle=entangle, entangler=entangler
+    )
     return template.bind(xa, w.ravel())
 
 
