@@ -195,6 +195,8 @@ def test_a_saved_product_head_is_drawn_without_entangling_gates(tmp_path: Path) 
         )
         res = inspect_circuit(CircuitSpec("head", model=path, x="0.1,0.2,0.3,0.4"), Collector())
         weights = network.head.weights.detach().double().numpy()
-        expected = probabilities(head_circuit([[0.1, 0.2, 0.3, 0.4]], weights, entangle=entangled))
+        expected = probabilities(
+            head_circuit([[0.1, 0.2, 0.3, 0.4]], weights, entangle=entangled, entangler="cz")
+        )
         np.testing.assert_allclose(res.probabilities, expected[0], atol=1e-12)
         assert ("■" in res.diagram or "cx" in res.diagram.lower()) == entangled

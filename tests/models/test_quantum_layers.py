@@ -138,16 +138,21 @@ def test_head_shots_only_in_eval_mode() -> None:
     assert bool(((est - exact).abs() <= 4.5 * sigma + 1e-12).all())
 
 
-def test_exported_head_circuit_on_aer_equals_qdcnn(tmp_path: Path) -> None:
+@pytest.mark.parametrize("entangler", ["cx", "cz"])
+def test_exported_head_circuit_on_aer_equals_qdcnn(tmp_path: Path, entangler: str) -> None:
     pytest.importorskip("qiskit_qasm3_import")
     aer = pytest.importorskip("qiskit_aer")
     from qdcnn.quantum.export import draw_text, from_qasm3, write_qasm3
 
-    head = _head(4, 2, reupload=True)
+    head = _head(4, 2, reupload=True, entangler=entangler)
     emb = torch.randn(3, 5, dtype=torch.float64)
     circuits = head.circuits(emb)
+    assert any(g.name == entangler for g in circuits.gates)
     readout = head_readout(
-        head.angles(emb).detach().numpy(), head.weights.detach().numpy(), reupload=True
+        head.angles(emb).detach().numpy(),
+        head.weights.detach().numpy(),
+        reupload=True,
+        entangler=entangler,
     )
     torch_z = head.expectations(emb).detach().numpy()
     np.testing.assert_allclose(readout["expectations"], torch_z, atol=1e-12)

@@ -67,6 +67,23 @@ def test_three_stages_and_a_trunk_frozen_while_the_head_trains() -> None:
     assert all(p.requires_grad for p in result.network.parameters())
 
 
+def test_the_head_stage_runs_at_a_higher_rate_and_the_fine_tuning_at_a_lower(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    rates: dict[str, float] = {}
+    run_stage = transfer._stage
+
+    def spy(trainer: Trainer, settings: TrainSettings, name: str, *args: Any) -> Any:
+        rates[name] = settings.lr
+        return run_stage(trainer, settings, name, *args)
+
+    monkeypatch.setattr(transfer, "_stage", spy)
+    fit_transfer(trainer(epochs=2), build, "quantum", samples())
+    assert rates["classical"] == 1e-2
+    assert rates["head"] == pytest.approx(1e-2 * transfer.HEAD_STAGE_LR_FACTOR)
+    assert rates["finetune"] == pytest.approx(1e-3)
+
+
 def test_a_frozen_trunk_stays_as_it_was() -> None:
     net = build("quantum", 0)
     before = {k: v.clone() for k, v in trunk_state(net).items()}

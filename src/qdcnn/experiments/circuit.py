@@ -193,7 +193,8 @@ def _build_vqc(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
 
 
 def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
-    """The hybrid QDCNN's quantum head: RY encoding, then Rot layers and CNOT rings.
+    """The hybrid QDCNN's quantum head: RY encoding, then Rot layers and rings of CNOTs
+    (or of CZs, as a saved dressed head has them).
 
     ``weights`` are the layers x qubits x 3 Rot angles flattened in that order
     (PennyLane's ``StronglyEntanglingLayers`` shape); with ``model`` they come from the
@@ -201,9 +202,9 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
     """
     from qdcnn.quantum.templates import head_circuit
 
-    entangle = True
+    ring: dict[str, Any] = {}
     if spec.model is not None:
-        weights, reupload, entangle = _trained_head(spec.model)
+        weights, reupload, ring = _trained_head(spec.model)
         qubits, layers = weights.shape[1], weights.shape[0]
     else:
         if spec.qubits is None or spec.layers is None or spec.weights is None:
@@ -215,7 +216,7 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
         flat = angle_list(spec.weights, "weights", layers * qubits * 3)
         weights, reupload = np.reshape(flat, (layers, qubits, 3)), bool(spec.reupload)
     xs = [0.0] * qubits if spec.x is None else angle_list(spec.x, "x", qubits)
-    circuit = head_circuit([xs], weights, reupload=reupload, entangle=entangle)
+    circuit = head_circuit([xs], weights, reupload=reupload, **ring)
     params = {
         "x": xs,
         "weights": np.asarray(weights).ravel().tolist(),
@@ -226,7 +227,7 @@ def _build_head(spec: CircuitSpec) -> tuple[Any, dict[str, Any]]:
     return circuit, params
 
 
-def _trained_head(path: Path) -> tuple[Any, bool, bool]:
+def _trained_head(path: Path) -> tuple[Any, bool, dict[str, Any]]:
     from qdcnn.direction.model import DirectionModel
 
     model = DirectionModel.load(path)
@@ -236,8 +237,11 @@ def _trained_head(path: Path) -> tuple[Any, bool, bool]:
     reupload = getattr(head, "reupload", None)
     if weights is None or reupload is None:
         raise ParameterError("model", str(path), "a hybrid model with a quantum head (qdcnn-*)")
-    entangle = bool(getattr(head, "entangle", True))  # False: the -noent ablation
-    return weights.detach().double().cpu().numpy(), bool(reupload), entangle
+    ring = {  # entangle False: the -noent ablation
+        "entangle": bool(getattr(head, "entangle", True)),
+        "entangler": str(getattr(head, "entangler", "cx")),
+    }
+    return weights.detach().double().cpu().numpy(), bool(reupload), ring
 
 
 #: The circuit kinds, by name.

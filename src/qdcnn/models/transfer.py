@@ -4,9 +4,10 @@ Stage 1 trains the classical network: for ``qdcnn-head`` PilotNet itself, traine
 the ``dnn-pilotnet`` method trains it (:class:`ClassicalStage`); for the other hybrids
 their trunk with a linear head, trained with the hybrid's settings. Stage 2 puts the
 hybrid's own head (quantum, its twin or an ablation) on that trunk and trains the head
-alone, the trunk frozen. Stage 3 fine-tunes everything at a tenth of the learning rate
-(Mari et al. 2020, "Transfer learning in hybrid classical-quantum neural networks";
-PennyLane's quantum transfer learning demo trains stage 2 only).
+alone, the trunk frozen, at ten times the learning rate. Stage 3 fine-tunes everything at
+a tenth of the learning rate (Mari et al. 2020, "Transfer learning in hybrid
+classical-quantum neural networks"; PennyLane's quantum transfer learning demo trains
+stage 2 only).
 
 The stage-1 trunk depends on the training frames, the seed and the settings, not on the
 head, so it is kept in memory (:func:`cached_trunk`): a hybrid, its twin and the ablations
@@ -39,6 +40,12 @@ TRUNK_PARTS: tuple[str, str] = ("front", "trunk")
 #: key -> (stage-1 trunk, epochs stage 1 ran)
 _TRUNKS: dict[str, tuple[dict[str, torch.Tensor], int]] = {}
 _MAX_CACHED = 32
+#: Stage 2 trains the new head alone at this multiple of the learning rate (new layers on
+#: a frozen trunk learn at a higher rate than the fine-tuning; at the trunk's rate a dressed
+#: head's few dozen parameters barely move in its quarter of the epochs:
+#: ``docs/hybrid-collapse.md``).
+HEAD_STAGE_LR_FACTOR = 10.0
+_MAX_LR = 10.0  # the trainer's bound on a learning rate
 
 
 @dataclass(frozen=True)
@@ -145,8 +152,8 @@ def fit_transfer(
     ----------
     trainer : Trainer
         Its settings are stage 1's; stage 2 runs :func:`stage_epochs`' first count (of the
-        epochs stage 1 ran, early stopping included) at the same rate, stage 3 the second
-        count at a tenth of it.
+        epochs stage 1 ran, early stopping included) at :data:`HEAD_STAGE_LR_FACTOR` times
+        the rate, stage 3 the second count at a tenth of it.
     build : callable
         ``build(head, seed)``, a fresh hybrid network.
     head : str
@@ -189,7 +196,8 @@ def fit_transfer(
         freeze_trunk(network, True)
         return network
 
-    head_settings = replace(s, epochs=head_epochs, patience=0)
+    head_lr = min(s.lr * HEAD_STAGE_LR_FACTOR, _MAX_LR)
+    head_settings = replace(s, epochs=head_epochs, patience=0, lr=head_lr)
     second = _stage(trainer, head_settings, "head", with_trunk(s.seed), samples, kw, with_trunk)
     restarts += [{**r, "stage": "head"} for r in second.restarts]
     freeze_trunk(second.network, False)

@@ -139,6 +139,7 @@ def head_readout(
     *,
     reupload: bool = False,
     noise: NoiseSpec | None = None,
+    entangler: str = "cx",
 ) -> dict[str, NDArray[np.float64]]:
     """Exact read-out of the head's circuits with the NumPy simulator.
 
@@ -148,7 +149,8 @@ def head_readout(
         ``probabilities`` ``(B, 2**n)`` (index = basis state, qubit 0 the least
         significant bit, as in Qiskit) and ``expectations`` ``(B, n)``, ``<Z_i>`` per qubit.
     """
-    probs = numpy_probabilities(head_circuit(x, weights, reupload=reupload), noise)
+    circuits = head_circuit(x, weights, reupload=reupload, entangler=entangler)
+    probs = numpy_probabilities(circuits, noise)
     return {"probabilities": probs, "expectations": z_expectations(probs)}
 
 
