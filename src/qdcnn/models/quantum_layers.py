@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 from qdcnn._optional import require
 from qdcnn._validation import (
     check_bool,
-    check_choice,
     check_float,
     check_int,
     check_optional_shots,
@@ -36,12 +35,7 @@ from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import CircuitBatch
 from qdcnn.quantum.noise import NoiseSpec
 from qdcnn.quantum.simulator import unitary
-from qdcnn.quantum.templates import (
-    ENTANGLERS,
-    head_circuit,
-    head_template,
-    random_layers_template,
-)
+from qdcnn.quantum.templates import head_circuit, head_template, random_layers_template
 from qdcnn.quantum.torchsim import MAX_QUBITS, TorchCircuit
 from qdcnn.quantum.torchsim.measure import sampled, z_signs
 
@@ -204,10 +198,8 @@ class QuantumHead(_DressedHead):
         self.n_layers = check_int("n_layers", n_layers, 1)
         self.reupload = check_bool("reupload", reupload)
         self.entangle = check_bool("entangle", entangle)
-        default = "cz" if self.dressed else "cx"
-        self.entangler = check_choice(
-            "entangler", default if entangler is None else entangler, ENTANGLERS
-        )
+        # checked by the circuit template, built below (set_noise)
+        self.entangler = ("cz" if self.dressed else "cx") if entangler is None else entangler
         self.shots = check_optional_shots(shots)
         self.noise = noise
         shape = (self.n_layers, self.n_qubits, 3)

@@ -65,6 +65,8 @@ StepCallback = Callable[[int, int], None]
 #: ``on_epoch(record, epochs)`` after every epoch, ``record`` as in :attr:`TrainResult.history`.
 EpochCallback = Callable[[Mapping[str, Any], int], None]
 _DEVICES = "'auto', 'cpu', 'cuda', 'cuda:N' or 'mps'"
+#: The largest learning rate the settings accept.
+MAX_LR = 10.0
 #: How the kept epoch is chosen: the lowest validation loss, or the highest validation
 #: balanced accuracy (ties: the lower loss).
 SELECTIONS: tuple[str, str] = ("loss", "balanced_accuracy")
@@ -183,7 +185,7 @@ class TrainSettings:
             self,
             epochs=check_int("epochs", self.epochs, 1, 100_000),
             batch_size=check_int("batch_size", self.batch_size, min_batch_size, 65_536),
-            lr=check_float("lr", self.lr, 0.0, 10.0, open_lo=True),
+            lr=check_float("lr", self.lr, 0.0, MAX_LR, open_lo=True),
             weight_decay=check_float("weight_decay", self.weight_decay, 0.0, 10.0),
             val_fraction=check_float("val_fraction", self.val_fraction, 0.0, 0.9),
             val_blocks=check_int("val_blocks", self.val_blocks, 1, 1000),

@@ -963,13 +963,13 @@ def _saved_head_format(meta: dict[str, Any], arch: str, source: object) -> dict[
     found = meta.get("head_format")
     if found == HEAD_FORMAT:
         return {}
-    if isinstance(found, int | None) and not isinstance(found, bool):
-        if found in _OLDER_HEAD_FORMATS:
-            return dict(_OLDER_HEAD_FORMATS[found])
+    if (found is None or type(found) is int) and found in _OLDER_HEAD_FORMATS:
+        return dict(_OLDER_HEAD_FORMATS[found])
+    readable = ", ".join(str(v) for v in (HEAD_FORMAT, *_OLDER_HEAD_FORMATS) if v is not None)
     raise InputError(
         str(source),
         f"header head_format {found!r} is not one this qdcnn reads "
-        f"({HEAD_FORMAT}, 2, or none for the original heads)",
+        f"({readable}, or none for the original heads)",
     )
 
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from qdcnn._optional import require
 from qdcnn.errors import ParameterError
-from qdcnn.models.trainer import FrameSamples, Trainer, TrainResult, TrainSettings
+from qdcnn.models.trainer import MAX_LR, FrameSamples, Trainer, TrainResult, TrainSettings
 
 require("torch", "transfer training")
 import torch  # noqa: E402
@@ -45,7 +45,6 @@ _MAX_CACHED = 32
 #: head's few dozen parameters barely move in its quarter of the epochs:
 #: ``docs/hybrid-collapse.md``).
 HEAD_STAGE_LR_FACTOR = 10.0
-_MAX_LR = 10.0  # the trainer's bound on a learning rate
 
 
 @dataclass(frozen=True)
@@ -196,7 +195,7 @@ def fit_transfer(
         freeze_trunk(network, True)
         return network
 
-    head_lr = min(s.lr * HEAD_STAGE_LR_FACTOR, _MAX_LR)
+    head_lr = min(s.lr * HEAD_STAGE_LR_FACTOR, MAX_LR)
     head_settings = replace(s, epochs=head_epochs, patience=0, lr=head_lr)
     second = _stage(trainer, head_settings, "head", with_trunk(s.seed), samples, kw, with_trunk)
     restarts += [{**r, "stage": "head"} for r in second.restarts]

@@ -409,19 +409,14 @@ class TemplateBuilder:
     def cx(self, control: int, target: int) -> TemplateBuilder:
         return self.add("cx", (control, target))
 
-    def cz(self, a: int, b: int) -> TemplateBuilder:
-        return self.add("cz", (a, b))
-
     def cnot_ring(self, r: int = 1) -> TemplateBuilder:
-        for control, target in cnot_ring(self.num_qubits, r):
-            self.cx(control, target)
-        return self
+        return self.ring(r, "cx")
 
-    def cz_ring(self, r: int = 1) -> TemplateBuilder:
-        """The CNOT ring's pairs with ``CZ`` in place of ``CX`` (PennyLane's
+    def ring(self, r: int = 1, gate: str = "cx") -> TemplateBuilder:
+        """The two-qubit ``gate`` on :func:`cnot_ring`'s pairs (``cz``: PennyLane's
         ``StronglyEntanglingLayers(..., imprimitive=qml.CZ)``)."""
-        for a, b in cnot_ring(self.num_qubits, r):
-            self.cz(a, b)
+        for pair in cnot_ring(self.num_qubits, r):
+            self.add(gate, pair)
         return self
 
     def build(self, name: str = "circuit") -> CircuitTemplate:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from qdcnn._validation import check_choice
 from qdcnn.errors import ParameterError
 from qdcnn.quantum.circuits import (
     CircuitBatch,
@@ -81,10 +82,8 @@ def head_template(
     """
     n = check_num_qubits(num_qubits)
     layers = _positive("num_layers", num_layers)
-    if entangler not in ENTANGLERS:
-        raise ParameterError("entangler", entangler, "'cx' or 'cz'")
+    entangler = check_choice("entangler", entangler, ENTANGLERS)
     b = TemplateBuilder(n, num_inputs=n, num_weights=3 * layers * n)
-    ring = b.cz_ring if entangler == "cz" else b.cnot_ring
     for layer, r in enumerate(entangler_ranges(n, layers)):
         if layer == 0 or reupload:
             for q in range(n):
@@ -92,7 +91,7 @@ def head_template(
         for q in range(n):
             b.rot(q, n + 3 * (layer * n + q))
         if n > 1 and entangle:
-            ring(r)
+            b.ring(r, entangler)
     name = "qdcnn_head" + ("_reupload" if reupload else "")
     name += ("_cz" if entangler == "cz" else "") if entangle else "_product"
     return b.build(name)
