@@ -94,6 +94,7 @@ def measure(args: argparse.Namespace) -> None:
             str(seeds),
             "--threads",
             str(args.threads),
+            *(["--balanced"] if args.balanced else []),
         ]
         wall, cpu = run_one(name, ["--data", spec], args.out, args.cache, common, with_fold_shares)
         # stage 1 is dnn-pilotnet's run: the hybrid's seconds count stages 2 and 3 only
@@ -107,6 +108,7 @@ def measure(args: argparse.Namespace) -> None:
             cpu,
             commit=_commit(),
             stage1="dnn-pilotnet",
+            balanced=args.balanced,
         )
 
 
@@ -195,7 +197,8 @@ def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -
     """Training seconds of PilotNet and of the whole transfer recipe, their ratio, the
     twin's, and each run's wall and CPU time. Where stage 1 is ``dnn-pilotnet``'s own run
     the recipe is PilotNet's seconds plus the hybrid's (stages 2 and 3); in runs made
-    before that, the hybrid's seconds include its own stage 1."""
+    before that, the hybrid's seconds include its own stage 1. "balanced": the run had
+    ``--balanced``."""
     rows = []
     for n in names:
         results, t = runs[n][0], timing[n]
@@ -203,11 +206,12 @@ def time_table(runs: dict[str, Any], names: list[str], timing: dict[str, Any]) -
         twin = _seconds(results, f"{HYBRID}-classical")
         shared = t.get("stage1") == "dnn-pilotnet"
         recipe = pilot + hybrid if shared else hybrid
+        stage1 = "PilotNet's run" if shared else "its own"
         rows.append(
             [
                 n,
                 t.get("commit", "not recorded"),
-                "PilotNet's run" if shared else "its own",
+                f"{stage1}, balanced" if t.get("balanced") else stage1,
                 f"{pilot:.0f}",
                 f"{recipe:.0f}",
                 f"{recipe / pilot:.2f}",
@@ -236,6 +240,9 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--recordings", default=",".join(RECORDINGS))
     parser.add_argument("--table", action="store_true", help="only print the tables")
+    parser.add_argument(
+        "--balanced", action="store_true", help="PilotNet (and stage 1) trained with --balanced"
+    )
     parser.add_argument("--adopt", help="NAME=SHORT,...: keep runs made outside (see adopt)")
     parser.add_argument("--adopt-dir", type=Path, default=Path("."))
     args = parser.parse_args()

@@ -95,6 +95,14 @@ TransferOpt = Annotated[
         "then fine-tune all at a tenth of the rate."
     ),
 ]
+BalancedOpt = Annotated[
+    bool,
+    typer.Option(
+        help="CNNs (PilotNet, and so the hybrids' stage 1) train as the hybrids do: "
+        "class-balanced loss, the epoch of the best validation balanced accuracy, "
+        "restarts of one-class runs."
+    ),
+]
 FromOpt = Annotated[
     Path | None,
     typer.Option(
@@ -114,6 +122,7 @@ def training_options(
     *,
     transfer: bool = False,
     from_model: Path | None = None,
+    balanced: bool = False,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
 
@@ -127,6 +136,7 @@ def training_options(
         context=context,
         transfer=transfer,
         from_model=from_model,
+        balanced=balanced,
     )
 
 
@@ -154,6 +164,7 @@ def evaluate_cmd(
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
     transfer: TransferOpt = False,
+    balanced: BalancedOpt = False,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -187,7 +198,15 @@ def evaluate_cmd(
             folds,
             gap,
             inner_folds,
-            training_options(epochs, weights, threads, not as_json, context, transfer=transfer),
+            training_options(
+                epochs,
+                weights,
+                threads,
+                not as_json,
+                context,
+                transfer=transfer,
+                balanced=balanced,
+            ),
             use_cache=cache,
             scheduler=scheduler,
             train=tuple(train or ()),
@@ -347,6 +366,7 @@ def train_direction_cmd(
     head: HeadOpt = "quantum",
     context: ContextOpt = 1,
     transfer: TransferOpt = False,
+    balanced: BalancedOpt = False,
     from_model: FromOpt = None,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
@@ -384,6 +404,7 @@ def train_direction_cmd(
                 context,
                 transfer=transfer,
                 from_model=from_model,
+                balanced=balanced,
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))

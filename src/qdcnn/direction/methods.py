@@ -70,6 +70,9 @@ class TrainingOptions:
     from_model : path or None
         A saved network of the same architecture whose trunk a hybrid starts from
         (``train-direction --from``).
+    balanced : bool
+        Train the classical CNNs (and so the hybrids' stage 1) with the hybrids'
+        :data:`HYBRID_RECIPE` (``--balanced``); ``params`` still win where they overlap.
 
     ``transfer`` and ``from_model`` change only the hybrids' estimators; other methods
     ignore them (:func:`staged_note` says which, and refuses them without a hybrid).
@@ -83,6 +86,7 @@ class TrainingOptions:
     params: Mapping[str, Any] = field(default_factory=dict)
     transfer: bool = False
     from_model: Path | None = None
+    balanced: bool = False
 
     def __post_init__(self) -> None:
         from qdcnn._validation import check_int
@@ -331,15 +335,26 @@ HYBRID_RECIPE: Mapping[str, Any] = {
 HYBRID_KINDS: tuple[str, ...] = ("hybrid", "hybrid-twin", "hybrid-ablation")
 
 
-def classical_recipe(params: Mapping[str, Any]) -> dict[str, Any]:
+#: Method kinds the CNN trainer trains (``--balanced`` applies to them).
+CNN_KINDS: tuple[str, ...] = ("cnn", *HYBRID_KINDS)
+
+
+def cnn_params(options: TrainingOptions) -> dict[str, Any]:
+    """The estimator parameters ``options`` set for every CNN: the hybrid recipe with
+    ``balanced``, then ``params``."""
+    return {**(HYBRID_RECIPE if options.balanced else {}), **options.params}
+
+
+def classical_recipe(options: TrainingOptions) -> dict[str, Any]:
     """What the classical method (``dnn-pilotnet``) trains with where the hybrid recipe
-    differs: the estimator's defaults, or ``params`` where given. Transfer's stage 1 then
-    trains exactly as that method does, and shares its trunk."""
+    differs: the estimator's defaults, or what ``options`` set (:func:`cnn_params`).
+    Transfer's stage 1 then trains exactly as that method does, and shares its trunk."""
     import inspect
 
     from qdcnn.models.training import CNNDirectionClassifier
 
     defaults = inspect.signature(CNNDirectionClassifier).parameters
+    params = cnn_params(options)
     return {k: params.get(k, defaults[k].default) for k in HYBRID_RECIPE}
 
 
@@ -356,7 +371,7 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
                 **HYBRID_RECIPE,
                 "transfer": options.transfer,
                 "trunk_from": from_model,
-                "classical_recipe": classical_recipe(options.params),
+                "classical_recipe": classical_recipe(options),
             }
         estimator = CNNDirectionClassifier(
             arch,
@@ -367,7 +382,7 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
             num_threads=options.threads,
             context=options.context,
             network_params=None if network_params is None else dict(network_params),
-            **{**staged, **dict(options.params)},
+            **{**staged, **cnn_params(options)},
         )
         return estimator, {}
 
@@ -381,14 +396,29 @@ def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) ->
     if not (options.transfer or options.from_model is not None):
         return None
     what = "--transfer" if options.transfer else "--from"
-    others = [m.name for m in methods if m.kind not in HYBRID_KINDS]
+    return _applies_note(what, methods, HYBRID_KINDS, ("hybrids", "a hybrid method"))
+
+
+def balanced_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
+    """What ``--balanced`` does to ``methods``: it applies to the CNNs and hybrids, the
+    others train as usual (a note says which). Without a CNN it is refused."""
+    if not options.balanced:
+        return None
+    nouns = ("CNNs and hybrids", "a CNN or hybrid method")
+    return _applies_note("--balanced", methods, CNN_KINDS, nouns)
+
+
+def _applies_note(
+    what: str, methods: Sequence[DirectionMethod], kinds: Sequence[str], nouns: tuple[str, str]
+) -> str | None:
+    others = [m.name for m in methods if m.kind not in kinds]
     if len(others) == len(methods):
         said = f"{others[0]} is not" if len(others) == 1 else f"none of {', '.join(others)} is"
-        raise ParameterError(what, "set", f"unset: {said} a hybrid method")
+        raise ParameterError(what, "set", f"unset: {said} {nouns[1]}")
     if not others:
         return None
     verb = "trains" if len(others) == 1 else "train"
-    return f"{what} applies to the hybrids; {', '.join(others)} {verb} as usual"
+    return f"{what} applies to the {nouns[0]}; {', '.join(others)} {verb} as usual"
 
 
 def with_head(names: str, head: str) -> str:

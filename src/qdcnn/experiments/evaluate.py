@@ -32,9 +32,11 @@ from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.frame_cache import method_inputs
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
+    CNN_KINDS,
     HYBRID_KINDS,
     DirectionMethod,
     TrainingOptions,
+    balanced_note,
     check_fit_settings,
     check_inner_search,
     get_method,
@@ -259,6 +261,8 @@ def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
         "context": options.context,
         "params": {k: repr(v) for k, v in options.params.items()},
     }
+    if options.balanced and m.kind in CNN_KINDS:  # absent otherwise: older keys stay valid
+        key["balanced"] = True
     if m.kind in HYBRID_KINDS:
         key["transfer"] = options.transfer
         trunk = options.from_model
@@ -419,8 +423,8 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
         has_torch=has_torch() if spec.has_torch is None else spec.has_torch,
         has_gpu=has_gpu() if spec.has_gpu is None else spec.has_gpu,
     )
-    staged = staged_note(methods, spec.training)
-    notes += [staged] if staged else []
+    staged = [staged_note(methods, spec.training), balanced_note(methods, spec.training)]
+    notes += [n for n in staged if n]
     for note in notes:
         report.note(note)
     if spec.recording_splits():

@@ -10,11 +10,12 @@ from qdcnn.batch import Failure
 from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.methods import (
-    HYBRID_KINDS,
     TrainingOptions,
+    balanced_note,
     check_fit_settings,
     check_inner_search,
     get_method,
+    staged_note,
 )
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError, ParameterError
@@ -50,10 +51,8 @@ class TrainDirectionSpec:
             raise ParameterError("data", "none", "one dataset spec or more")
         method = get_method(self.method)
         check_fit_settings(self.gap, self.inner_folds, self.training)
-        staged = self.training.transfer or self.training.from_model is not None
-        if staged and method.kind not in HYBRID_KINDS:
-            what = "--transfer" if self.training.transfer else "--from"
-            raise ParameterError(what, "set", f"unset: {method.name} is not a hybrid method")
+        staged_note([method], self.training)  # one method: refused, never a note
+        balanced_note([method], self.training)
 
 
 @dataclass
