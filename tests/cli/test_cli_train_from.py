@@ -68,3 +68,17 @@ def test_from_a_model_without_a_network_is_refused_in_one_line(tmp_path: Path) -
     errors = [line for line in result.output.splitlines() if line.strip()]
     assert errors == [f"error: {path}: the model's method 'lines-logreg' has no trained network"]
     assert not (tmp_path / "out.safetensors").exists()
+
+
+@pytest.mark.parametrize("command", ["train-direction", "evaluate"])
+def test_balanced_without_a_cnn_is_refused_in_one_line(tmp_path: Path, command: str) -> None:
+    args = [command, "--data", "synthetic:track2:10", "--method", "lines-logreg", "--balanced"]
+    if command == "train-direction":
+        args += ["--out", str(tmp_path / "out.safetensors")]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.output.splitlines() if line.strip()]
+    assert errors == [
+        "error: --balanced='set' is invalid: unset: lines-logreg is not a CNN or hybrid method"
+    ]
+    assert not (tmp_path / "out.safetensors").exists()

@@ -13,7 +13,9 @@ cv2 = pytest.importorskip("cv2")
 
 from qdcnn.config import PipelineConfig  # noqa: E402
 from qdcnn.direction.methods import (  # noqa: E402
+    HYBRID_RECIPE,
     TrainingOptions,
+    balanced_note,
     get_method,
     staged_note,
     with_head,
@@ -259,3 +261,57 @@ def test_stage_one_trains_with_the_classical_methods_params() -> None:
     hybrid.set_params(classical_recipe={"colour": "red"})
     with pytest.raises(ParameterError, match="classical_recipe=.*a mapping of training param"):
         hybrid.fit(*lean_frames(30))
+
+
+def test_balanced_trains_pilotnet_and_stage_one_with_the_hybrid_recipe() -> None:
+    balanced = TrainingOptions(balanced=True, transfer=True)
+    pilot = get_method("dnn-pilotnet").estimator(PipelineConfig(), balanced)[0]
+    assert {k: pilot.get_params()[k] for k in HYBRID_RECIPE} == dict(HYBRID_RECIPE)
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), balanced)[0]
+    assert hybrid.classical_recipe == dict(HYBRID_RECIPE)
+    plain = get_method("dnn-pilotnet").estimator(PipelineConfig(), TrainingOptions())[0]
+    assert (plain.class_weight, plain.select, plain.restarts) == (None, "loss", 0)
+    mine = replace(balanced, params={"restarts": 0})  # params still win
+    assert get_method("dnn-pilotnet").estimator(PipelineConfig(), mine)[0].restarts == 0
+    assert get_method("qdcnn-head").estimator(PipelineConfig(), mine)[0].classical_recipe == {
+        **HYBRID_RECIPE,
+        "restarts": 0,
+    }
+
+
+def test_balanced_is_for_cnns_only() -> None:
+    pilotnet, lines = get_method("dnn-pilotnet"), get_method("lines-logreg")
+    hog, hybrid = get_method("hog-logreg"), get_method("qdcnn-head-linear")
+    options = TrainingOptions(balanced=True)
+    assert balanced_note([pilotnet, hybrid], options) is None
+    assert (
+        balanced_note([pilotnet, lines, hog], options)
+        == "--balanced applies to the CNNs and hybrids; lines-logreg, hog-logreg train as usual"
+    )
+    with pytest.raises(ParameterError, match="--balanced=.*unset: hog-logreg is not a CNN"):
+        balanced_note([hog], options)
+    assert balanced_note([hog], TrainingOptions()) is None
+
+
+def test_cached_folds_tell_balanced_runs_apart() -> None:
+    def key(name: str, options: TrainingOptions) -> str:
+        return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
+
+    plain, balanced = TrainingOptions(), TrainingOptions(balanced=True)
+    for name in ("dnn-pilotnet", "qdcnn-head", "qdcnn-head-fixed"):
+        assert key(name, plain) != key(name, balanced)
+    assert key("hog-logreg", plain) == key("hog-logreg", balanced)
+
+
+def test_balanced_stage_one_is_the_balanced_pilotnet_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    from qdcnn.models import transfer
+
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    images, labels = lean_frames(60, seed=4)
+    options = replace(OPTIONS, epochs=2, transfer=True, balanced=True)
+    get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0].fit(images, labels)
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
+    assert [r["stage"] for r in hybrid.fit(images, labels).history_] == ["head", "finetune"]
+    plain = get_method("qdcnn-head").estimator(PipelineConfig(), replace(options, balanced=False))
+    stages = [r["stage"] for r in plain[0].fit(images, labels).history_]
+    assert stages[0] == "classical"  # the balanced PilotNet's trunk is not the plain one's
