@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -315,3 +316,33 @@ def test_balanced_stage_one_is_the_balanced_pilotnet_run(monkeypatch: pytest.Mon
     plain = get_method("qdcnn-head").estimator(PipelineConfig(), replace(options, balanced=False))
     stages = [r["stage"] for r in plain[0].fit(images, labels).history_]
     assert stages[0] == "classical"  # the balanced PilotNet's trunk is not the plain one's
+
+
+def test_a_resumed_transfer_evaluation_reads_its_trunks_from_the_cache(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from qdcnn.direction.features import code_fingerprint
+    from qdcnn.experiments.evaluate import with_trunk_cache
+    from qdcnn.models import transfer
+
+    monkeypatch.setenv("QDCNN_CACHE", str(tmp_path))
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    options = replace(OPTIONS, epochs=2, transfer=True)
+
+    def spec(methods: str, **kw: Any) -> EvaluationSpec:
+        return EvaluationSpec("synthetic:track1:100", methods, folds=2, inner_folds=0, **kw)
+
+    folder = tmp_path / "trunks" / code_fingerprint()
+    assert with_trunk_cache(spec("qdcnn-head", training=options)).training.trunk_cache == folder
+    for kw in ({"training": OPTIONS}, {"training": options, "use_cache": False}):
+        assert with_trunk_cache(spec("qdcnn-head", **kw)).training.trunk_cache is None
+    run_evaluation(spec("dnn-pilotnet,qdcnn-head", training=options), Collector())
+    assert len(list(folder.glob("*.safetensors"))) == 2  # one trunk per fold
+    monkeypatch.setattr(transfer, "_TRUNKS", {})  # a new process
+    stage_ones: list[str] = []
+    run_stage = transfer._classical_stage
+    monkeypatch.setattr(
+        transfer, "_classical_stage", lambda *a: stage_ones.append("ran") or run_stage(*a)
+    )
+    run_evaluation(spec("dnn-pilotnet,qdcnn-head-linear", training=options), Collector())
+    assert stage_ones == []

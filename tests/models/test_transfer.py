@@ -148,3 +148,34 @@ def test_a_trunk_of_another_network_is_refused() -> None:
     other = HybridNet(None, nn.Sequential(nn.Flatten(), nn.Linear(3 * 4 * 4, 7)), nn.Identity())
     with pytest.raises(ParameterError, match="trunk"):
         load_trunk(build("quantum", 0), trunk_state(other))
+
+
+def test_a_trunk_kept_in_a_folder_serves_a_later_process(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    t = trainer(epochs=2)
+    key = data_key(samples(), t.settings, "on disk")
+    first, trunk = fit_transfer(t, build, "quantum", samples(), cache_key=key, folder=tmp_path)
+    assert (tmp_path / f"{key}.safetensors").is_file()
+    monkeypatch.setattr(transfer, "_TRUNKS", {})  # as in a resumed run or another worker
+    assert cached_epochs(key) is None and cached_epochs(key, tmp_path) == 2
+    again, read = fit_transfer(t, build, "quantum", samples(), cache_key=key, folder=tmp_path)
+    assert all(torch.equal(read[k], v) for k, v in trunk.items())
+    assert [r["stage"] for r in again.history] == ["head", "finetune"]
+    mine, theirs = first.network.state_dict(), again.network.state_dict()
+    assert all(torch.equal(mine[k], theirs[k]) for k in mine)  # the same network either way
+
+
+def test_an_unreadable_kept_trunk_is_trained_again(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    t = trainer(epochs=2)
+    key = data_key(samples(), t.settings, "damaged")
+    keep_trunk(key, trunk_state(build("linear", 0)), 2, tmp_path)
+    (tmp_path / f"{key}.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken")
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    assert cached_trunk(key, tmp_path) is None
+    result, _ = fit_transfer(t, build, "quantum", samples(), cache_key=key, folder=tmp_path)
+    assert [r["stage"] for r in result.history][0] == "classical"
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    assert cached_epochs(key, tmp_path) == 2  # rewritten

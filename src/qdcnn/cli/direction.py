@@ -119,10 +119,9 @@ def training_options(
     threads: int | None,
     progress: bool,
     context: int = 1,
-    *,
     transfer: bool = False,
-    from_model: Path | None = None,
     balanced: bool = False,
+    from_model: Path | None = None,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
 
@@ -198,15 +197,7 @@ def evaluate_cmd(
             folds,
             gap,
             inner_folds,
-            training_options(
-                epochs,
-                weights,
-                threads,
-                not as_json,
-                context,
-                transfer=transfer,
-                balanced=balanced,
-            ),
+            training_options(epochs, weights, threads, not as_json, context, transfer, balanced),
             use_cache=cache,
             scheduler=scheduler,
             train=tuple(train or ()),
@@ -397,14 +388,7 @@ def train_direction_cmd(
             inner_folds,
             gap,
             training_options(
-                epochs,
-                weights,
-                threads,
-                not as_json,
-                context,
-                transfer=transfer,
-                from_model=from_model,
-                balanced=balanced,
+                epochs, weights, threads, not as_json, context, transfer, balanced, from_model
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))

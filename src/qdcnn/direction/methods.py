@@ -70,6 +70,9 @@ class TrainingOptions:
     from_model : path or None
         A saved network of the same architecture whose trunk a hybrid starts from
         (``train-direction --from``).
+    trunk_cache : path or None
+        Where transfer's stage-1 trunks are also kept on disk (``evaluate`` with its cache
+        on sets it); changes no result.
     balanced : bool
         Train the classical CNNs (and so the hybrids' stage 1) with the hybrids'
         :data:`HYBRID_RECIPE` (``--balanced``); ``params`` still win where they overlap.
@@ -87,6 +90,7 @@ class TrainingOptions:
     transfer: bool = False
     from_model: Path | None = None
     balanced: bool = False
+    trunk_cache: Path | None = None
 
     def __post_init__(self) -> None:
         from qdcnn._validation import check_int
@@ -380,6 +384,7 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
             seed=config.seed,
             progress=options.progress,
             num_threads=options.threads,
+            trunk_cache=options.trunk_cache,
             context=options.context,
             network_params=None if network_params is None else dict(network_params),
             **{**staged, **cnn_params(options)},

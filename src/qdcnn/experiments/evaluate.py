@@ -297,7 +297,7 @@ def _settings(estimator: Any) -> dict[str, Any]:
     return {
         k: str(v) if hasattr(v, "__fspath__") else list(v) if isinstance(v, tuple) else v
         for k, v in params.items()
-        if k not in ("progress", "checkpoint_dir")
+        if k not in ("progress", "checkpoint_dir", "trunk_cache")
     }
 
 
@@ -427,6 +427,7 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
     notes += [n for n in staged if n]
     for note in notes:
         report.note(note)
+    spec = with_trunk_cache(spec)
     if spec.recording_splits():
         from qdcnn.experiments.evaluate_cross import run_cross_evaluation
 
@@ -438,6 +439,19 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
     for c in result.comparisons:
         report.note(f"{c['a']} - {c['b']} on {c['dataset']}: {c['text']}")
     return result
+
+
+def with_trunk_cache(spec: EvaluationSpec) -> EvaluationSpec:
+    """``spec`` with transfer's stage-1 trunks kept in the cache too (when the cache is on
+    and hybrids train with ``--transfer``), so a resumed run does not train them again.
+    The folder is per code version, like every cached result."""
+    from qdcnn.direction.features import cache_dir, code_fingerprint
+
+    training = spec.training
+    if not (spec.use_cache and training.transfer) or training.trunk_cache is not None:
+        return spec
+    folder = cache_dir() / "trunks" / code_fingerprint()
+    return replace(spec, training=replace(training, trunk_cache=folder))
 
 
 def _run_k_fold(

@@ -305,6 +305,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     seed : int
         Seeds initialisation, dropout, shuffling and augmentation; the same seed
         gives identical predictions on the same device and thread count.
+    trunk_cache : path or None
+        A folder where transfer's stage-1 trunks are also kept (and looked up), so a
+        resumed run or another process does not train them again
+        (:func:`qdcnn.models.transfer.keep_trunk`); it changes no result.
     checkpoint_dir : path or None
         When set, ``last.safetensors`` (network, AdamW state, scheduler state,
         history: :func:`qdcnn.models.persistence.load_checkpoint`) is written
@@ -384,6 +388,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         device: str = "auto",
         seed: int = 0,
         checkpoint_dir: str | Path | None = None,
+        trunk_cache: str | Path | None = None,
         progress: bool = True,
         num_threads: int | None = None,
         crop: tuple[float, float] | None = None,
@@ -416,6 +421,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.device = device
         self.seed = seed
         self.checkpoint_dir = checkpoint_dir
+        self.trunk_cache = trunk_cache
         self.progress = progress
         self.num_threads = num_threads
         self.crop = crop
@@ -456,6 +462,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self._check_staged()
         if self.weights is not None and not isinstance(self.weights, str | os.PathLike):
             raise ParameterError("weights", self.weights, "a weights file path or None")
+        if self.trunk_cache is not None and not isinstance(self.trunk_cache, str | os.PathLike):
+            raise ParameterError("trunk_cache", self.trunk_cache, "a folder path or None")
         _check_crop(self.crop)
         check_int("context", self.context, 1, _MAX_CONTEXT)
         _check_network_params(self.network_params)
@@ -636,6 +644,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             cache_key=key,
             fit_kw=fit_kw,
             classical=classical,
+            folder=self.trunk_cache,
         )
         return result
 
@@ -682,7 +691,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             return
 
         trunk = CLASSICAL_TRUNKS[self.arch](result.network)
-        keep_trunk(self._trunk_key(samples, settings), trunk, len(result.history))
+        keep_trunk(self._trunk_key(samples, settings), trunk, len(result.history), self.trunk_cache)
 
     def read_trunk(self) -> dict[str, Any]:
         """The front and trunk weights of the ``trunk_from`` network, checked against this

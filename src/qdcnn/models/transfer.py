@@ -13,6 +13,8 @@ The stage-1 trunk depends on the training frames, the seed and the settings, not
 head, so it is kept in memory (:func:`cached_trunk`): a hybrid, its twin and the ablations
 trained on the same fold with the same seed share one classical training, and with
 PilotNet as stage 1 that training is the ``dnn-pilotnet`` run of the same fold and seed.
+Given a folder (``evaluate`` gives one inside its cache), trunks are also kept there as
+safetensors files, so a resumed run and other processes (Dask workers) find them too.
 """
 
 from __future__ import annotations
@@ -21,10 +23,12 @@ import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from qdcnn._fileio import atomic_write_bytes
 from qdcnn._optional import require
 from qdcnn.errors import ParameterError
 from qdcnn.models.trainer import MAX_LR, FrameSamples, Trainer, TrainResult, TrainSettings
@@ -115,23 +119,56 @@ def data_key(samples: FrameSamples, settings: TrainSettings, what: str) -> str:
     return h.hexdigest()
 
 
-def cached_trunk(key: str) -> dict[str, torch.Tensor] | None:
+def cached_trunk(key: str, folder: str | Path | None = None) -> dict[str, torch.Tensor] | None:
     """The stage-1 trunk kept under ``key``, if any."""
-    kept = _TRUNKS.get(key)
+    kept = _kept(key, folder)
     return None if kept is None else kept[0]
 
 
-def cached_epochs(key: str) -> int | None:
+def cached_epochs(key: str, folder: str | Path | None = None) -> int | None:
     """How many epochs the stage 1 of the trunk kept under ``key`` ran, if kept."""
-    kept = _TRUNKS.get(key)
+    kept = _kept(key, folder)
     return None if kept is None else kept[1]
 
 
-def keep_trunk(key: str, state: dict[str, torch.Tensor], epochs: int) -> None:
-    """Keep a stage-1 trunk and the epochs it took (the oldest goes beyond :data:`_MAX_CACHED`)."""
+def keep_trunk(
+    key: str, state: dict[str, torch.Tensor], epochs: int, folder: str | Path | None = None
+) -> None:
+    """Keep a stage-1 trunk and the epochs it took (the oldest goes beyond
+    :data:`_MAX_CACHED`), and write it to ``folder`` when given."""
+    _remember(key, (state, epochs))
+    if folder is not None:
+        from safetensors.torch import save
+
+        data = save({k: v.contiguous() for k, v in state.items()}, {"epochs": str(epochs)})
+        atomic_write_bytes(_trunk_file(folder, key), data)
+
+
+def _remember(key: str, kept: tuple[dict[str, torch.Tensor], int]) -> None:
     if len(_TRUNKS) >= _MAX_CACHED:
         _TRUNKS.pop(next(iter(_TRUNKS)))
-    _TRUNKS[key] = (state, epochs)
+    _TRUNKS[key] = kept
+
+
+def _kept(key: str, folder: str | Path | None) -> tuple[dict[str, torch.Tensor], int] | None:
+    """The trunk kept under ``key``: in memory, else in ``folder`` (then remembered). An
+    unreadable file counts as absent: the trunk is trained again and the file rewritten."""
+    if key in _TRUNKS or folder is None or not _trunk_file(folder, key).is_file():
+        return _TRUNKS.get(key)
+    from safetensors import SafetensorError, safe_open
+
+    try:
+        with safe_open(str(_trunk_file(folder, key)), framework="pt") as f:
+            state = {k: f.get_tensor(k) for k in f.keys()}
+            kept = state, int((f.metadata() or {}).get("epochs", ""))
+    except (OSError, ValueError, SafetensorError):
+        return None
+    _remember(key, kept)
+    return kept
+
+
+def _trunk_file(folder: str | Path, key: str) -> Path:
+    return Path(folder) / f"{key}.safetensors"
 
 
 def fit_transfer(
@@ -144,6 +181,7 @@ def fit_transfer(
     cache_key: str | None = None,
     fit_kw: dict[str, Any] | None = None,
     classical: ClassicalStage | None = None,
+    folder: str | Path | None = None,
 ) -> tuple[TrainResult, dict[str, torch.Tensor]]:
     """Run the three stages (stage 1 skipped when ``trunk`` is given or cached).
 
@@ -166,6 +204,8 @@ def fit_transfer(
     classical : ClassicalStage or None
         Stage 1 as another network's own training; by default the hybrid with a linear
         head, trained with ``trainer``'s settings.
+    folder : path or None
+        Where trunks are also kept on disk (:func:`keep_trunk`).
 
     Returns
     -------
@@ -177,7 +217,7 @@ def fit_transfer(
     records: list[dict[str, Any]] = []
     restarts: list[dict[str, Any]] = []
     ran = s.epochs  # a trunk from a file: the epochs asked for
-    kept = _TRUNKS.get(cache_key) if trunk is None and cache_key is not None else None
+    kept = _kept(cache_key, folder) if trunk is None and cache_key is not None else None
     if kept is not None:
         trunk, ran = kept
     if trunk is None:
@@ -186,7 +226,7 @@ def fit_transfer(
         records += _staged(first, "classical")
         restarts += [{**r, "stage": "classical"} for r in first.restarts]
         if cache_key is not None:
-            keep_trunk(cache_key, trunk, ran)
+            keep_trunk(cache_key, trunk, ran, folder)
     head_epochs, tune_epochs = stage_epochs(ran)
 
     def with_trunk(seed: int) -> nn.Module:
