@@ -159,7 +159,7 @@ def tables(out: Path) -> None:
     rows = [[m, *(cells.get((m, n), "") for n in names)] for m in methods]
     major = {n: runs[n][0][0]["majority"]["balanced_accuracy"] for n in names}
     rows.append(["majority class of the training folds", *(f"{major[n]:.2f}" for n in names)])
-    header = ["balanced accuracy [95 %]", *(f"{n} ({RECORDINGS[n][1]} seed(s))" for n in names)]
+    header = ["balanced accuracy [95 %]", *(_column(n, timing[n]) for n in names)]
     print(markdown_table(header, rows))
     pairs = list(dict.fromkeys((c["a"], c["b"]) for n in names for c in runs[n][1]))
     diff = {(c["a"], c["b"], n): c["text"] for n in names for c in runs[n][1]}
@@ -174,6 +174,12 @@ def tables(out: Path) -> None:
     print(collapse_table(runs, names, methods))
     print()
     print(time_table(runs, names, timing))
+
+
+def _column(name: str, timing: dict[str, Any]) -> str:
+    """A recording's column: its seeds, and whether PilotNet trained with ``--balanced``."""
+    balanced = ", --balanced" if timing.get("balanced") else ""
+    return f"{name} ({RECORDINGS[name][1]} seed(s){balanced})"
 
 
 def collapse_table(runs: dict[str, Any], names: list[str], methods: list[str]) -> str:

@@ -79,6 +79,7 @@ def test_balanced_without_a_cnn_is_refused_in_one_line(tmp_path: Path, command: 
     assert result.exit_code == 2, result.output
     errors = [line for line in result.output.splitlines() if line.strip()]
     assert errors == [
-        "error: --balanced='set' is invalid: unset: lines-logreg is not a CNN or hybrid method"
+        "error: --balanced='set' is invalid: unset: lines-logreg is not a CNN or a hybrid with "
+        "PilotNet as stage 1 under --transfer"
     ]
     assert not (tmp_path / "out.safetensors").exists()

@@ -280,18 +280,26 @@ def test_balanced_trains_pilotnet_and_stage_one_with_the_hybrid_recipe() -> None
     }
 
 
-def test_balanced_is_for_cnns_only() -> None:
+def test_balanced_is_for_cnns_and_pilotnet_as_stage_one() -> None:
     pilotnet, lines = get_method("dnn-pilotnet"), get_method("lines-logreg")
     hog, hybrid = get_method("hog-logreg"), get_method("qdcnn-head-linear")
-    options = TrainingOptions(balanced=True)
-    assert balanced_note([pilotnet, hybrid], options) is None
-    assert (
-        balanced_note([pilotnet, lines, hog], options)
-        == "--balanced applies to the CNNs and hybrids; lines-logreg, hog-logreg train as usual"
+    options, staged = TrainingOptions(balanced=True), TrainingOptions(balanced=True, transfer=True)
+    assert balanced_note([pilotnet, hybrid], staged) is None
+    assert balanced_note([pilotnet, hybrid], options) == (
+        "--balanced applies to the CNNs and to the hybrids' PilotNet stage 1; "
+        "qdcnn-head-linear trains as usual"
     )
-    with pytest.raises(ParameterError, match="--balanced=.*unset: hog-logreg is not a CNN"):
-        balanced_note([hog], options)
+    assert balanced_note([pilotnet, lines, hog], options) == (
+        "--balanced applies to the CNNs and to the hybrids' PilotNet stage 1; "
+        "lines-logreg, hog-logreg train as usual"
+    )
+    refused = "--balanced=.*unset: {} is not a CNN or a hybrid with PilotNet as stage 1"
+    for method, opts in ((hog, options), (hybrid, options), (get_method("qdcnn-quanv"), staged)):
+        with pytest.raises(ParameterError, match=refused.format(method.name)):
+            balanced_note([method], opts)  # the hybrid recipe already, or another stage 1
     assert balanced_note([hog], TrainingOptions()) is None
+    with pytest.raises(ParameterError, match="balanced='yes'"):
+        TrainingOptions(balanced="yes")  # type: ignore[arg-type]
 
 
 def test_cached_folds_tell_balanced_runs_apart() -> None:
@@ -299,8 +307,13 @@ def test_cached_folds_tell_balanced_runs_apart() -> None:
         return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
 
     plain, balanced = TrainingOptions(), TrainingOptions(balanced=True)
-    for name in ("dnn-pilotnet", "qdcnn-head", "qdcnn-head-fixed"):
-        assert key(name, plain) != key(name, balanced)
+    assert key("dnn-pilotnet", plain) != key("dnn-pilotnet", balanced)
+    recipe = TrainingOptions(params=HYBRID_RECIPE)  # the same training: the same results
+    assert key("dnn-pilotnet", recipe) == key("dnn-pilotnet", balanced)
+    for name in ("qdcnn-head", "qdcnn-head-fixed"):
+        assert key(name, plain) == key(name, balanced)  # trains with the recipe already
+        staged = replace(plain, transfer=True)
+        assert key(name, staged) != key(name, replace(staged, balanced=True))  # its stage 1
     assert key("hog-logreg", plain) == key("hog-logreg", balanced)
 
 

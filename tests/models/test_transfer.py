@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -176,6 +177,23 @@ def test_an_unreadable_kept_trunk_is_trained_again(
     monkeypatch.setattr(transfer, "_TRUNKS", {})
     assert cached_trunk(key, tmp_path) is None
     result, _ = fit_transfer(t, build, "quantum", samples(), cache_key=key, folder=tmp_path)
-    assert [r["stage"] for r in result.history][0] == "classical"
+    assert result.history[0]["stage"] == "classical"
     monkeypatch.setattr(transfer, "_TRUNKS", {})
     assert cached_epochs(key, tmp_path) == 2  # rewritten
+
+
+def test_a_folder_that_cannot_be_written_only_keeps_nothing(tmp_path: Any) -> None:
+    blocked = tmp_path / "trunks"
+    blocked.write_text("a file where the folder would be")
+    t = trainer(epochs=2)
+    key = data_key(samples(), t.settings, "blocked")
+    result, _ = fit_transfer(t, build, "quantum", samples(), cache_key=key, folder=blocked)
+    assert result.history[0]["stage"] == "classical" and cached_epochs(key) == 2  # in memory
+
+
+def test_the_trunk_key_ignores_where_and_on_how_many_threads_it_ran(tmp_path: Any) -> None:
+    t = trainer(epochs=2)
+    key = data_key(samples(), t.settings, "here")
+    elsewhere = replace(t.settings, num_threads=2, checkpoint_dir=str(tmp_path))
+    assert data_key(samples(), elsewhere, "here") == key
+    assert data_key(samples(), replace(t.settings, seed=1), "here") != key

@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from qdcnn.direction.protocol import MethodResult
     from qdcnn.experiments.detect_lanes import DetectLanesResult
     from qdcnn.experiments.evaluate import EvaluationResult
+    from qdcnn.experiments.train_direction import TrainDirectionResult
 
 DataOpt = Annotated[str, typer.Option(help="udacity:PATH | carla:PATH | synthetic:PRESET[:N]")]
 DataListOpt = Annotated[
@@ -119,6 +120,7 @@ def training_options(
     threads: int | None,
     progress: bool,
     context: int = 1,
+    *,
     transfer: bool = False,
     balanced: bool = False,
     from_model: Path | None = None,
@@ -197,7 +199,9 @@ def evaluate_cmd(
             folds,
             gap,
             inner_folds,
-            training_options(epochs, weights, threads, not as_json, context, transfer, balanced),
+            training_options(
+                epochs, weights, threads, not as_json, context, transfer=transfer, balanced=balanced
+            ),
             use_cache=cache,
             scheduler=scheduler,
             train=tuple(train or ()),
@@ -388,7 +392,14 @@ def train_direction_cmd(
             inner_folds,
             gap,
             training_options(
-                epochs, weights, threads, not as_json, context, transfer, balanced, from_model
+                epochs,
+                weights,
+                threads,
+                not as_json,
+                context,
+                transfer=transfer,
+                balanced=balanced,
+                from_model=from_model,
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))
@@ -397,17 +408,22 @@ def train_direction_cmd(
     if as_json:
         emit(result.to_dict())
     else:
-        s = result.model.summary
-        out.print(
-            f"{result.model.method} trained on {s['n']} frames of {' + '.join(data)} "
-            f"(training accuracy {s['training_accuracy']:.3f}); written to {result.path}"
-        )
-        for r in s.get("restarts", []):
-            out.print(
-                f"note: the run with seed {r['seed']} predicted one class on its validation "
-                f"frames ({r['val_predictions']}); restarted with seed {r['next_seed']}"
-            )
+        _print_trained(result, data)
     raise typer.Exit(result.exit_code)
+
+
+def _print_trained(result: TrainDirectionResult, data: list[str]) -> None:
+    """What ``train-direction`` trained, where it went, and any restarted run."""
+    s = result.model.summary
+    out.print(
+        f"{result.model.method} trained on {s['n']} frames of {' + '.join(data)} "
+        f"(training accuracy {s['training_accuracy']:.3f}); written to {result.path}"
+    )
+    for r in s.get("restarts", []):
+        out.print(
+            f"note: the run with seed {r['seed']} predicted one class on its validation "
+            f"frames ({r['val_predictions']}); restarted with seed {r['next_seed']}"
+        )
 
 
 def detect_lanes_cmd(

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -93,12 +94,15 @@ class TrainingOptions:
     trunk_cache: Path | None = None
 
     def __post_init__(self) -> None:
-        from qdcnn._validation import check_int
+        from qdcnn._validation import check_bool, check_int
 
         check_int("epochs", self.epochs, 1, 10_000)
         if self.threads is not None:
             check_int("threads", self.threads, 1, 1024)
         check_int("context", self.context, 1, 64)
+        check_bool("balanced", self.balanced)
+        if self.trunk_cache is not None and not isinstance(self.trunk_cache, str | Path):
+            raise ParameterError("trunk_cache", self.trunk_cache, "a folder path or None")
 
 
 def check_fit_settings(gap: int, inner_folds: int, training: TrainingOptions) -> None:
@@ -339,10 +343,6 @@ HYBRID_RECIPE: Mapping[str, Any] = {
 HYBRID_KINDS: tuple[str, ...] = ("hybrid", "hybrid-twin", "hybrid-ablation")
 
 
-#: Method kinds the CNN trainer trains (``--balanced`` applies to them).
-CNN_KINDS: tuple[str, ...] = ("cnn", *HYBRID_KINDS)
-
-
 def cnn_params(options: TrainingOptions) -> dict[str, Any]:
     """The estimator parameters ``options`` set for every CNN: the hybrid recipe with
     ``balanced``, then ``params``."""
@@ -401,22 +401,55 @@ def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) ->
     if not (options.transfer or options.from_model is not None):
         return None
     what = "--transfer" if options.transfer else "--from"
-    return _applies_note(what, methods, HYBRID_KINDS, ("hybrids", "a hybrid method"))
+    nouns = ("hybrids", "a hybrid method")
+    return _applies_note(what, methods, lambda m: m.kind in HYBRID_KINDS, nouns)
 
 
 def balanced_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
-    """What ``--balanced`` does to ``methods``: it applies to the CNNs and hybrids, the
-    others train as usual (a note says which). Without a CNN it is refused."""
+    """What ``--balanced`` does to ``methods``: it applies to the classical CNNs and, under
+    ``--transfer``, to the stage 1 of hybrids whose stage 1 is one (the others train as
+    usual; a note says which). Where it changes nothing it is refused."""
     if not options.balanced:
         return None
-    nouns = ("CNNs and hybrids", "a CNN or hybrid method")
-    return _applies_note("--balanced", methods, CNN_KINDS, nouns)
+    nouns = (
+        "CNNs and to the hybrids' PilotNet stage 1",
+        "a CNN or a hybrid with PilotNet as stage 1 under --transfer",
+    )
+    return _applies_note("--balanced", methods, partial(balanced_applies, options=options), nouns)
+
+
+def balanced_applies(method: DirectionMethod, options: TrainingOptions) -> bool:
+    """Whether ``--balanced`` changes how ``method`` trains: a classical CNN, or a hybrid
+    whose transfer stage 1 is a classical network's own training (the hybrids' own
+    training has the recipe already)."""
+    if method.kind == "cnn":
+        return True
+    return method.kind in HYBRID_KINDS and options.transfer and _stage_one(method) is not None
+
+
+def _stage_one(method: DirectionMethod) -> str | None:
+    """The classical network whose training is ``method``'s transfer stage 1, if any."""
+    for h in HYBRID_NETWORKS:
+        if method.name in (h.name, h.twin, *(name for name, _ in h.ablations)):
+            return h.classical
+    return None
+
+
+def option_notes(methods: Sequence[DirectionMethod], options: TrainingOptions) -> list[str]:
+    """The notes of ``--transfer`` / ``--from`` and ``--balanced`` for ``methods``; an option
+    that changes none of them is refused (:class:`ParameterError`)."""
+    notes = (staged_note(methods, options), balanced_note(methods, options))
+    return [n for n in notes if n]
 
 
 def _applies_note(
-    what: str, methods: Sequence[DirectionMethod], kinds: Sequence[str], nouns: tuple[str, str]
+    what: str,
+    methods: Sequence[DirectionMethod],
+    applies: Callable[[DirectionMethod], bool],
+    nouns: tuple[str, str],
 ) -> str | None:
-    others = [m.name for m in methods if m.kind not in kinds]
+    """The note (or, when it applies to none, the refusal) of option ``what``."""
+    others = [m.name for m in methods if not applies(m)]
     if len(others) == len(methods):
         said = f"{others[0]} is not" if len(others) == 1 else f"none of {', '.join(others)} is"
         raise ParameterError(what, "set", f"unset: {said} {nouns[1]}")

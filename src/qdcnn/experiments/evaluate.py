@@ -32,16 +32,17 @@ from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.frame_cache import method_inputs
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
-    CNN_KINDS,
     HYBRID_KINDS,
     DirectionMethod,
     TrainingOptions,
-    balanced_note,
+    balanced_applies,
     check_fit_settings,
     check_inner_search,
+    classical_recipe,
+    cnn_params,
     get_method,
+    option_notes,
     select_methods,
-    staged_note,
 )
 from qdcnn.direction.protocol import (
     RESAMPLES,
@@ -253,18 +254,20 @@ def fold_store(
 
 
 def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
-    """The training options that change ``m``'s result (not threads or progress);
-    ``--transfer`` and ``--from`` change only a hybrid's."""
+    """The training options that change ``m``'s result (not threads or progress), as
+    resolved: ``--balanced`` and the same ``params`` give one key; ``--transfer`` and
+    ``--from`` change only a hybrid's, and so does ``--balanced`` through its stage 1."""
+    params = cnn_params(options) if m.kind == "cnn" else options.params
     key: dict[str, Any] = {
         "epochs": options.epochs,
         "weights": None if options.weights is None else str(options.weights),
         "context": options.context,
-        "params": {k: repr(v) for k, v in options.params.items()},
+        "params": {k: repr(v) for k, v in params.items()},
     }
-    if options.balanced and m.kind in CNN_KINDS:  # absent otherwise: older keys stay valid
-        key["balanced"] = True
     if m.kind in HYBRID_KINDS:
         key["transfer"] = options.transfer
+        if balanced_applies(m, options):  # under --transfer, PilotNet is its stage 1
+            key["stage_1"] = {k: repr(v) for k, v in classical_recipe(options).items()}
         trunk = options.from_model
         key["from"] = None if trunk is None else file_identity(trunk, content_hash=True)["sha256"]
     return key
@@ -423,8 +426,7 @@ def run_evaluation(spec: EvaluationSpec, reporter: Reporter | None = None) -> Ev
         has_torch=has_torch() if spec.has_torch is None else spec.has_torch,
         has_gpu=has_gpu() if spec.has_gpu is None else spec.has_gpu,
     )
-    staged = [staged_note(methods, spec.training), balanced_note(methods, spec.training)]
-    notes += [n for n in staged if n]
+    notes += option_notes(methods, spec.training)
     for note in notes:
         report.note(note)
     spec = with_trunk_cache(spec)

@@ -11,11 +11,10 @@ from qdcnn.config import PipelineConfig
 from qdcnn.data.labels import check_labels_usable
 from qdcnn.direction.methods import (
     TrainingOptions,
-    balanced_note,
     check_fit_settings,
     check_inner_search,
     get_method,
-    staged_note,
+    option_notes,
 )
 from qdcnn.direction.model import DirectionModel, train_direction_model
 from qdcnn.errors import InputError, ParameterError
@@ -51,8 +50,7 @@ class TrainDirectionSpec:
             raise ParameterError("data", "none", "one dataset spec or more")
         method = get_method(self.method)
         check_fit_settings(self.gap, self.inner_folds, self.training)
-        staged_note([method], self.training)  # one method: refused, never a note
-        balanced_note([method], self.training)
+        option_notes([method], self.training)  # one method: refused where they do nothing
 
 
 @dataclass

@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from qdcnn._fileio import atomic_write_bytes
+from qdcnn._fileio import atomic_write_bytes, remove_dead_temporaries
 from qdcnn._optional import require
-from qdcnn.errors import ParameterError
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.models.trainer import MAX_LR, FrameSamples, Trainer, TrainResult, TrainSettings
 
 require("torch", "transfer training")
@@ -115,7 +115,8 @@ def data_key(samples: FrameSamples, settings: TrainSettings, what: str) -> str:
     h = hashlib.blake2b(digest_size=16)
     for tensor in (samples.pool, samples.windows, samples.labels):
         h.update(np.ascontiguousarray(tensor.cpu().numpy()).tobytes())
-    h.update(repr((settings, what)).encode())
+    how = replace(settings, num_threads=None, checkpoint_dir=None)  # where it ran: not the key
+    h.update(repr((how, what)).encode())
     return h.hexdigest()
 
 
@@ -141,7 +142,12 @@ def keep_trunk(
         from safetensors.torch import save
 
         data = save({k: v.contiguous() for k, v in state.items()}, {"epochs": str(epochs)})
-        atomic_write_bytes(_trunk_file(folder, key), data)
+        path = _trunk_file(folder, key)
+        remove_dead_temporaries(path.parent)  # of runs killed while writing
+        try:
+            atomic_write_bytes(path, data)
+        except InputError:
+            pass  # the folder only saves time: one that cannot be written is not an error
 
 
 def _remember(key: str, kept: tuple[dict[str, torch.Tensor], int]) -> None:
@@ -153,7 +159,7 @@ def _remember(key: str, kept: tuple[dict[str, torch.Tensor], int]) -> None:
 def _kept(key: str, folder: str | Path | None) -> tuple[dict[str, torch.Tensor], int] | None:
     """The trunk kept under ``key``: in memory, else in ``folder`` (then remembered). An
     unreadable file counts as absent: the trunk is trained again and the file rewritten."""
-    if key in _TRUNKS or folder is None or not _trunk_file(folder, key).is_file():
+    if key in _TRUNKS or folder is None:
         return _TRUNKS.get(key)
     from safetensors import SafetensorError, safe_open
 
@@ -161,7 +167,7 @@ def _kept(key: str, folder: str | Path | None) -> tuple[dict[str, torch.Tensor],
         with safe_open(str(_trunk_file(folder, key)), framework="pt") as f:
             state = {k: f.get_tensor(k) for k in f.keys()}
             kept = state, int((f.metadata() or {}).get("epochs", ""))
-    except (OSError, ValueError, SafetensorError):
+    except (OSError, ValueError, SafetensorError):  # absent, unreadable or damaged
         return None
     _remember(key, kept)
     return kept
