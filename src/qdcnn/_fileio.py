@@ -87,9 +87,7 @@ def discard(path: Path) -> None:
 TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\.[A-Za-z0-9]+)?$")
 
 
-def _write_and_replace(
-    tmp: Path, data: bytes | Callable[[BinaryIO], object], target: Path
-) -> None:
+def _write_and_replace(tmp: Path, data: bytes | Callable[[BinaryIO], object], target: Path) -> None:
     """Write ``tmp`` (``data``, or what ``data(file)`` writes) and rename it onto ``target``.
 
     The writer holds a shared ``flock`` on the folder from before ``tmp`` exists until the
@@ -303,6 +301,20 @@ class AtomicTextFile:
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     """:func:`atomic_write_bytes` of ``text`` encoded as UTF-8."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def write_cache_entry(path: Path, data: bytes) -> InputError | None:
+    """Write a cache entry atomically, first removing dead writers' temporaries in its folder.
+
+    A cache only saves time, so a write that fails is returned, not raised: the caller
+    reports it or goes on without the entry.
+    """
+    remove_dead_temporaries(path.parent)  # of runs killed while writing
+    try:
+        atomic_write_bytes(path, data)
+    except InputError as exc:
+        return exc
+    return None
 
 
 def unique_stems(paths: list[Path]) -> dict[Path, str]:

@@ -31,9 +31,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from qdcnn._fileio import atomic_write_bytes, remove_dead_temporaries
+from qdcnn._fileio import write_cache_entry
 from qdcnn.batch import Failure
-from qdcnn.errors import InputError
 
 _STATUSES = frozenset({"ok", "one-line", "no-lines", "crossed", "wrong-side", "unreadable"})
 #: ``(path, reason)`` -> None: told about every unusable entry before it is removed.
@@ -86,13 +85,10 @@ def write_entry(
         arrays[f"status/{g}"] = np.asarray(entry.status[g], dtype=str)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)  # type: ignore[arg-type]
-    remove_dead_temporaries(path.parent)  # of runs killed while writing an entry
-    try:
-        atomic_write_bytes(path, buffer.getvalue())
-    except InputError as exc:
-        _report(on_error, path, f"not written ({exc.reason})")
-        return False
-    return True
+    error = write_cache_entry(path, buffer.getvalue())
+    if error is not None:
+        _report(on_error, path, f"not written ({error.reason})")
+    return error is None
 
 
 def read_entry(

@@ -21,10 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn import __version__
-from qdcnn._fileio import atomic_write_text, remove_dead_temporaries
+from qdcnn._fileio import write_cache_entry
 from qdcnn.direction.features import cache_dir, code_fingerprint
 from qdcnn.direction.protocol import FoldStore
-from qdcnn.errors import InputError
 
 __all__ = ["UnitStore", "unit_key"]
 
@@ -73,11 +72,8 @@ class UnitStore(FoldStore):
             "chosen": chosen,
             "epochs_run": int(epochs),
         }
-        remove_dead_temporaries(self.path(fold).parent)  # of runs killed while writing
-        try:
-            atomic_write_text(self.path(fold), json.dumps(entry, default=_plain))
-        except InputError:
-            return  # the cache only saves time: a read-only cache is not an error
+        # the cache only saves time: a read-only cache is not an error
+        write_cache_entry(self.path(fold), json.dumps(entry, default=_plain).encode())
 
 
 def _plain(value: Any) -> Any:

@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from qdcnn._fileio import atomic_write_bytes, remove_dead_temporaries
+from qdcnn._fileio import write_cache_entry
 from qdcnn._optional import require
-from qdcnn.errors import InputError, ParameterError
+from qdcnn.errors import ParameterError
 from qdcnn.models.trainer import MAX_LR, FrameSamples, Trainer, TrainResult, TrainSettings
 
 require("torch", "transfer training")
@@ -142,12 +142,7 @@ def keep_trunk(
         from safetensors.torch import save
 
         data = save({k: v.contiguous() for k, v in state.items()}, {"epochs": str(epochs)})
-        path = _trunk_file(folder, key)
-        remove_dead_temporaries(path.parent)  # of runs killed while writing
-        try:
-            atomic_write_bytes(path, data)
-        except InputError:
-            pass  # the folder only saves time: one that cannot be written is not an error
+        write_cache_entry(_trunk_file(folder, key), data)  # unwritable: kept in memory only
 
 
 def _remember(key: str, kept: tuple[dict[str, torch.Tensor], int]) -> None:
