@@ -7,9 +7,12 @@ The recipe (seed 0, CPU, 2 torch threads)
   balanced accuracy, restarts when the validation predictions are one class) and the
   two-stage transfer training (``--transfer``: PilotNet first, then the head on the frozen
   trunk, then fine-tuning at a tenth of the rate), :data:`EPOCHS` classical epochs, the
-  existing augmentation (flips, brightness, shadows). Stage 1 is PilotNet under the same
-  recipe (``--balanced``): a model for recordings it never saw meets other class shares,
-  and balanced accuracy is what it is scored by.
+  existing augmentation (flips, brightness, shadows) plus colour randomisation
+  (``colour_augment``: channel order, contrast, grey frames), all stages. Stage 1 is
+  PilotNet under the same recipe (``--balanced``): a model for recordings it never saw
+  meets other class shares, and balanced accuracy is what it is scored by; and other
+  roads' colours (the colour randomisation was chosen for that reason before it was
+  scored, docs/builtin-model.md).
 * Data: the four recordings of ``../shared/data`` and three synthetic presets. Consecutive
   frames of a recording are near duplicates, so each recording is thinned to one frame in
   ``stride`` (:data:`RECORDINGS`: lake 1 in 13, mountain 1 in 3, dark mountain 1 in 15,
@@ -175,7 +178,12 @@ def training_options() -> Any:
 
     epochs = int(os.environ.get("BUILTIN_EPOCHS", EPOCHS))  # a quick try: BUILTIN_EPOCHS=1
     return TrainingOptions(
-        epochs=epochs, threads=THREADS, progress=False, transfer=True, balanced=True
+        epochs=epochs,
+        threads=THREADS,
+        progress=False,
+        transfer=True,
+        balanced=True,
+        params={"colour_augment": True},
     )
 
 

@@ -10,6 +10,7 @@ torch = pytest.importorskip("torch")
 from qdcnn.models.augment import (  # noqa: E402
     SHADOW_DARKNESS,
     augment_batch,
+    randomise_colour,
     shadow_masks,
     shift_columns,
 )
@@ -85,3 +86,49 @@ def test_shift_is_bounded_keeps_labels_and_is_off_by_default() -> None:
     offsets = (column - w // 2).abs()  # a flip moves the middle column by at most 1
     assert int(offsets.max()) <= round(0.1 * w) + 1
     assert int((offsets >= 2).sum()) > n // 4  # most frames did move
+
+
+def flat_colour_batch(n: int) -> torch.Tensor:
+    """Frames of three flat, distinct channel levels (R 40, G 120, B 220) and one
+    brighter pixel, so the channel order and the contrast can be read back."""
+    x = torch.empty((n, 3, 6, 8))
+    x[:, 0], x[:, 1], x[:, 2] = 40.0, 120.0, 220.0
+    x[:, :, 0, 0] += 10.0
+    return x
+
+
+def test_colour_permutes_channels_scales_contrast_and_greys() -> None:
+    n = 600
+    x = flat_colour_batch(n)
+    out = randomise_colour(x, torch.Generator().manual_seed(2))
+    grey = (out[:, 0] == out[:, 1]).all(dim=(1, 2)) & (out[:, 1] == out[:, 2]).all(dim=(1, 2))
+    assert 0.15 < grey.float().mean() < 0.25
+    colour = out[~grey]
+    # contrast about the frame's mean keeps the mean and scales every deviation alike
+    torch.testing.assert_close(colour.mean(dim=(1, 2, 3)), x[~grey].mean(dim=(1, 2, 3)))
+    order = colour[:, :, 1, 1].argsort(dim=1)  # which input channel each output holds
+    orders = {tuple(o.tolist()) for o in order}
+    assert len(orders) == 6  # every permutation occurs
+    identity = (order == torch.arange(3)).all(dim=1).float().mean()
+    assert 0.5 < identity < 0.67  # kept with 1/2 + 1/2 * 1/6
+    spread = colour[:, :, 0, 0] - colour[:, :, 1, 1]  # the bright pixel's offset, scaled
+    factor = spread / 10.0
+    assert factor.min() >= 0.6 - 1e-5 and factor.max() <= 1.4 + 1e-5
+    assert factor.std() > 0.1
+
+
+def test_colour_keeps_labels_and_the_other_draws() -> None:
+    labels = torch.arange(40) % 3
+    x = half_bright_batch(40)
+    plain, plain_labels = augment_batch(x, labels, torch.Generator().manual_seed(4))
+    coloured, coloured_labels = augment_batch(
+        x, labels, torch.Generator().manual_seed(4), colour=True
+    )
+    assert torch.equal(plain_labels, coloured_labels)
+    assert not torch.equal(plain, coloured)
+
+    # colour changes no frame's left-right layout: the same frames are flipped
+    def flipped(out: torch.Tensor) -> torch.Tensor:
+        return out[..., 10:].mean(dim=(1, 2, 3)) > out[..., :10].mean(dim=(1, 2, 3))
+
+    assert torch.equal(flipped(plain), flipped(coloured))

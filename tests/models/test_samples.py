@@ -62,12 +62,13 @@ def test_augmentation_treats_the_frames_of_a_sample_alike() -> None:
     k = 3
     frames = torch.from_numpy(rng.integers(0, 256, (6, k, 3, 12, 20), dtype=np.uint8))
     labels = torch.tensor([0, 1, 2, 0, 1, 2])
+    kw = {"max_shift": 0.2, "colour": True}
     out, out_labels = augment_batch(
-        frames.reshape(6, 3 * k, 12, 20), labels, torch.Generator().manual_seed(5), max_shift=0.2
+        frames.reshape(6, 3 * k, 12, 20), labels, torch.Generator().manual_seed(5), **kw
     )
     for j in range(k):  # each frame alone, with the same random draws, gets the same change
         alone, alone_labels = augment_batch(
-            frames[:, j], labels, torch.Generator().manual_seed(5), max_shift=0.2
+            frames[:, j], labels, torch.Generator().manual_seed(5), **kw
         )
         torch.testing.assert_close(out[:, 3 * j : 3 * j + 3], alone, rtol=0, atol=1e-4)
         assert torch.equal(alone_labels, out_labels)

@@ -219,6 +219,14 @@ def test_unweighted_smoothed_loss_learns_and_is_reported(
     assert clf.history_[clf.best_epoch_ - 1]["val_loss"] == pytest.approx(expected, rel=1e-4)
 
 
+def test_colour_randomised_training_still_learns_the_shapes(
+    data: tuple[np.ndarray, np.ndarray],
+) -> None:
+    clf = small(epochs=4, colour_augment=True).fit(*data)
+    test_x, test_y = line_frames(30, np.random.default_rng(1))
+    assert clf.score(test_x, test_y) >= 0.8
+
+
 def test_contiguous_validation_split() -> None:
     # 0.15 -> the last of round(1 / 0.15) = 7 contiguous folds (KFold sizes 15, 15, 14, ...)
     train, val = split_train_val(100, 0.15)
@@ -307,6 +315,7 @@ def test_parameter_errors_are_raised_by_fit() -> None:
         "lr_schedule='step' is invalid: one of 'constant', 'cosine'"
     )
     assert fit_error(max_shift=-0.1) == "max_shift=-0.1 is invalid: a finite number in [0, 0.5]"
+    assert fit_error(colour_augment="yes") == "colour_augment='yes' is invalid: True or False"
     assert fit_error(val_blocks=0) == "val_blocks=0 is invalid: an integer in [1, 1000]"
     assert fit_error(epochs=True) == "epochs=True is invalid: an integer in [1, 100000]"
     assert fit_error(context=0) == "context=0 is invalid: an integer in [1, 64]"

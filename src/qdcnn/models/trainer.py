@@ -155,6 +155,7 @@ class TrainSettings:
     patience: int = 8
     augment: bool = True
     max_shift: float = 0.0
+    colour_augment: bool = False
     class_weight: Literal["balanced"] | None = None
     label_smoothing: float = 0.1
     lr_schedule: Literal["constant", "cosine"] = "cosine"
@@ -193,6 +194,7 @@ class TrainSettings:
             patience=check_int("patience", self.patience, 0, 100_000),
             augment=check_bool("augment", self.augment),
             max_shift=check_float("max_shift", self.max_shift, 0.0, 0.5),
+            colour_augment=check_bool("colour_augment", self.colour_augment),
             label_smoothing=check_float(
                 "label_smoothing", self.label_smoothing, 0.0, 0.5, open_hi=True
             ),
@@ -593,7 +595,13 @@ class _Loop:
         xb, yb = self.batch(rows)
         xb, yb = xb.to(self.device), yb.to(self.device)
         if self.s.augment:
-            xb, yb = augment_batch(xb, yb, self.augment_gen, max_shift=float(self.s.max_shift))
+            xb, yb = augment_batch(
+                xb,
+                yb,
+                self.augment_gen,
+                max_shift=float(self.s.max_shift),
+                colour=self.s.colour_augment,
+            )
         loss = F.cross_entropy(
             self.net(self.t.transform(xb)),
             yb,

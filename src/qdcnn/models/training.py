@@ -258,6 +258,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     max_shift : float
         Largest random horizontal shift of a training frame, as a fraction of its
         width (labels kept; 0 disables shifts). Only with ``augment``.
+    colour_augment : bool
+        Also randomise colours (:func:`qdcnn.models.augment.randomise_colour`: channel
+        order, contrast, grey frames), so the network decides by shapes that other roads
+        share. Only with ``augment``.
     class_weight : {"balanced", None}
         ``"balanced"`` weights the cross-entropy by :func:`class_weights`, which
         trades accuracy for recall of the rare turns; ``None`` (plain
@@ -375,6 +379,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         patience: int = 8,
         augment: bool = True,
         max_shift: float = 0.0,
+        colour_augment: bool = False,
         class_weight: Literal["balanced"] | None = None,
         label_smoothing: float = 0.1,
         lr_schedule: Literal["constant", "cosine"] = "cosine",
@@ -408,6 +413,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.patience = patience
         self.augment = augment
         self.max_shift = max_shift
+        self.colour_augment = colour_augment
         self.class_weight = class_weight
         self.label_smoothing = label_smoothing
         self.lr_schedule = lr_schedule
@@ -447,6 +453,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             patience=self.patience,
             augment=self.augment,
             max_shift=self.max_shift,
+            colour_augment=self.colour_augment,
             class_weight=self.class_weight,
             label_smoothing=self.label_smoothing,
             lr_schedule=self.lr_schedule,
