@@ -7,12 +7,9 @@ The recipe (seed 0, CPU, 2 torch threads)
   balanced accuracy, restarts when the validation predictions are one class) and the
   two-stage transfer training (``--transfer``: PilotNet first, then the head on the frozen
   trunk, then fine-tuning at a tenth of the rate), :data:`EPOCHS` classical epochs, the
-  existing augmentation (flips, brightness, shadows) plus colour randomisation
-  (``colour_augment``: channel order, contrast, grey frames), all stages. Stage 1 is
-  PilotNet under the same recipe (``--balanced``): a model for recordings it never saw
-  meets other class shares, and balanced accuracy is what it is scored by; and other
-  roads' colours (the colour randomisation was chosen for that reason before it was
-  scored, docs/builtin-model.md).
+  existing augmentation (flips, brightness, shadows). Stage 1 is PilotNet under the same
+  recipe (``--balanced``): a model for recordings it never saw meets other class shares,
+  and balanced accuracy is what it is scored by.
 * Data: the four recordings of ``../shared/data`` and three synthetic presets. Consecutive
   frames of a recording are near duplicates, so each recording is thinned to one frame in
   ``stride`` (:data:`RECORDINGS`: lake 1 in 13, mountain 1 in 3, dark mountain 1 in 15,
@@ -50,6 +47,9 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
     python benchmarks/train_builtin.py --data-root ../shared/data
     python benchmarks/train_builtin.py --skip-final --leave-out real-dashcam-sample
         # the saved model kept: (re)score these left-out recordings, update header and JSON
+    python benchmarks/train_builtin.py --colour-augment --model /tmp/colour.safetensors \
+        --results docs/results/builtin-recipe-colour-fdbaddb.json
+        # the colour-randomised variant (docs/builtin-model.md), written elsewhere
 """
 
 from __future__ import annotations
@@ -173,6 +173,10 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
     )
 
 
+#: Estimator parameters of a recipe variant (``--colour-augment``); empty: the recipe.
+VARIANT: dict[str, Any] = {}
+
+
 def training_options() -> Any:
     from qdcnn.direction.methods import TrainingOptions
 
@@ -183,7 +187,7 @@ def training_options() -> Any:
         progress=False,
         transfer=True,
         balanced=True,
-        params={"colour_augment": True},
+        params=dict(VARIANT),
     )
 
 
@@ -305,13 +309,19 @@ def commit() -> str:
         return "unknown"
 
 
-def save(model: Any, info: dict[str, Any], loo: dict[str, list[dict[str, Any]]]) -> None:
+def save(
+    model: Any,
+    info: dict[str, Any],
+    loo: dict[str, list[dict[str, Any]]],
+    paths: tuple[Path, Path] = (MODEL_PATH, RESULTS_PATH),
+) -> None:
     """The model (if any) with its header, and the results JSON."""
     from qdcnn._fileio import atomic_write_bytes
 
     summary = {
         "recipe": __doc__.split("Leave-one-recording-out")[0].strip() if __doc__ else "",
         "seed": SEED,
+        "variant": dict(VARIANT),
         "commit": commit(),
         "training": info,
         "leave_one_out": {
@@ -333,16 +343,16 @@ def save(model: Any, info: dict[str, Any], loo: dict[str, list[dict[str, Any]]])
     result: dict[str, Any] = {"builtin": summary, "leave_one_out_rows": loo}
     if model is not None:
         model.summary["builtin"] = summary
-        path = model.save(MODEL_PATH)
+        path = model.save(paths[0])
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         result["model"] = {
-            "path": str(path.relative_to(REPO)),
+            "path": str(path.relative_to(REPO) if path.is_relative_to(REPO) else path),
             "sha256": digest,
             "bytes": path.stat().st_size,
         }
         print(f"model {path} ({path.stat().st_size} bytes) sha256 {digest}", flush=True)
     text = json.dumps(result, indent=1, default=_plain) + "\n"
-    atomic_write_bytes(RESULTS_PATH, text.encode())
+    atomic_write_bytes(paths[1], text.encode())
 
 
 def _plain(value: Any) -> Any:
@@ -353,13 +363,11 @@ def _plain(value: Any) -> Any:
     raise TypeError(type(value).__name__)
 
 
-def _saved_rows() -> dict[str, list[dict[str, Any]]]:
-    """The leave-one-out rows of the results JSON, if any."""
-    if not RESULTS_PATH.is_file():
+def _saved_rows(path: Path) -> dict[str, list[dict[str, Any]]]:
+    """The leave-one-out rows of the results JSON at ``path``, if any."""
+    if not path.is_file():
         return {}
-    rows: dict[str, list[dict[str, Any]]] = json.loads(RESULTS_PATH.read_text())[
-        "leave_one_out_rows"
-    ]
+    rows: dict[str, list[dict[str, Any]]] = json.loads(path.read_text())["leave_one_out_rows"]
     return rows
 
 
@@ -372,7 +380,17 @@ def main() -> None:
         action="store_true",
         help="keep the saved model (add the scores to its header and to the JSON)",
     )
+    parser.add_argument(
+        "--colour-augment",
+        action="store_true",
+        help="the colour-randomised variant of the recipe (docs/builtin-model.md)",
+    )
+    parser.add_argument("--model", type=Path, default=MODEL_PATH, help="model file to write")
+    parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
     args = parser.parse_args()
+    if args.colour_augment:
+        VARIANT["colour_augment"] = True
+    paths = (args.model.resolve(), args.results.resolve())
     import torch
 
     from qdcnn.direction.model import DirectionModel
@@ -382,16 +400,16 @@ def main() -> None:
     sets = load_sets(args.data_root)
     loo: dict[str, list[dict[str, Any]]] = {}
     if args.skip_final:  # the saved model, its header updated with the scores
-        model = DirectionModel.load(MODEL_PATH)
+        model = DirectionModel.load(paths[0])
         info = model.summary["builtin"]["training"]
-        loo = {k: v for k, v in _saved_rows().items() if k not in args.leave_out.split(",")}
+        loo = {k: v for k, v in _saved_rows(paths[1]).items() if k not in args.leave_out.split(",")}
     else:
         model, info = train_final(sets)
         print(f"trained on {info['frames']} frames in {info['wall_s']} s", flush=True)
-        save(model, info, loo)
+        save(model, info, loo, paths)
     for test in filter(None, args.leave_out.split(",")):
         loo[test] = leave_one_out(sets, test)
-        save(model, info, loo)
+        save(model, info, loo, paths)
 
 
 if __name__ == "__main__":
