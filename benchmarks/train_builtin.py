@@ -321,7 +321,7 @@ def save(
     summary = {
         "recipe": __doc__.split("Leave-one-recording-out")[0].strip() if __doc__ else "",
         "seed": SEED,
-        "variant": dict(VARIANT),
+        **({"variant": dict(VARIANT)} if VARIANT else {}),
         "commit": commit(),
         "training": info,
         "leave_one_out": {
@@ -388,9 +388,11 @@ def main() -> None:
     parser.add_argument("--model", type=Path, default=MODEL_PATH, help="model file to write")
     parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
     args = parser.parse_args()
-    if args.colour_augment:
-        VARIANT["colour_augment"] = True
     paths = (args.model.resolve(), args.results.resolve())
+    if args.colour_augment:
+        if MODEL_PATH in paths or RESULTS_PATH in paths:
+            parser.error("--colour-augment: give --model and --results (not the shipped files)")
+        VARIANT["colour_augment"] = True
     import torch
 
     from qdcnn.direction.model import DirectionModel
@@ -401,6 +403,8 @@ def main() -> None:
     loo: dict[str, list[dict[str, Any]]] = {}
     if args.skip_final:  # the saved model, its header updated with the scores
         model = DirectionModel.load(paths[0])
+        if model.summary["builtin"].get("variant", {}) != VARIANT:
+            parser.error(f"--skip-final: {paths[0]} was trained with another recipe variant")
         info = model.summary["builtin"]["training"]
         loo = {k: v for k, v in _saved_rows(paths[1]).items() if k not in args.leave_out.split(",")}
     else:

@@ -103,6 +103,9 @@ def test_colour_permutes_channels_scales_contrast_and_greys() -> None:
     out = randomise_colour(x, torch.Generator().manual_seed(2))
     grey = (out[:, 0] == out[:, 1]).all(dim=(1, 2)) & (out[:, 1] == out[:, 2]).all(dim=(1, 2))
     assert 0.15 < grey.float().mean() < 0.25
+    # a grey frame is the BT.601 luma of its own RGB (contrast keeps the mean)
+    luma = 0.299 * 40.0 + 0.587 * 120.0 + 0.114 * 220.0 + 10.0 / 48.0
+    torch.testing.assert_close(out[grey].mean(dim=(1, 2, 3)), torch.full((int(grey.sum()),), luma))
     colour = out[~grey]
     # contrast about the frame's mean keeps the mean and scales every deviation alike
     torch.testing.assert_close(colour.mean(dim=(1, 2, 3)), x[~grey].mean(dim=(1, 2, 3)))

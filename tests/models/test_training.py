@@ -7,6 +7,7 @@ tests (test_networks, test_trainer, test_model_files, test_samples).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -217,6 +218,34 @@ def test_unweighted_smoothed_loss_learns_and_is_reported(
     logp = np.log(clf.predict_proba(x[val]))
     expected = np.mean(-(1 - eps) * logp[np.arange(len(val)), y[val]] - eps / 3 * logp.sum(1))
     assert clf.history_[clf.best_epoch_ - 1]["val_loss"] == pytest.approx(expected, rel=1e-4)
+
+
+def test_colour_augment_reaches_the_training_steps(
+    data: tuple[np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from qdcnn.models import augment
+
+    seen: list[object] = []
+    real = augment.augment_batch
+
+    def spy(*args: Any, **kw: Any) -> Any:
+        seen.append(kw.get("colour"))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(augment, "augment_batch", spy)
+    small(colour_augment=True).fit(*data)
+    assert seen and all(c is True for c in seen)
+    seen.clear()
+    small().fit(*data)
+    assert seen and all(c is False for c in seen)
+
+
+def test_a_hybrids_stage_one_keeps_colour_augment() -> None:
+    hybrid = CNNDirectionClassifier(
+        "qdcnn-head", transfer=True, colour_augment=True, classical_recipe={"class_weight": None}
+    )
+    first = hybrid._classical_estimator("pilotnet")
+    assert first.colour_augment is True and first.class_weight is None
 
 
 def test_colour_randomised_training_still_learns_the_shapes(

@@ -103,17 +103,16 @@ def randomise_colour(images: torch.Tensor, generator: torch.Generator) -> torch.
     orders = torch.tensor(list(permutations(range(3))))
     pick = torch.randint(0, len(orders), (n,), generator=generator)
     permuted = torch.rand(n, generator=generator) < _PERMUTE_PROBABILITY
+    contrast = _uniform(n, *_CONTRAST_RANGE, generator).to(x.device).view(n, 1, 1, 1, 1)
+    grey = (torch.rand(n, generator=generator) < _GREY_PROBABILITY).to(x.device)
+    # grey first, from the frame's own RGB: a grey frame is the same in any channel order
+    weights = torch.tensor(_GREY_WEIGHTS, device=x.device).view(1, 1, 3, 1, 1)
+    luma = (x * weights).sum(2, keepdim=True)
+    x = torch.where(grey.view(n, 1, 1, 1, 1), luma.expand_as(x), x)
     order = torch.where(permuted.view(n, 1), orders[pick], orders[0]).to(x.device)
     x = torch.gather(x, 2, order.view(n, 1, 3, 1, 1).expand_as(x))
-    contrast = _uniform(n, *_CONTRAST_RANGE, generator).to(x.device).view(n, 1, 1, 1, 1)
     mean = x.mean(dim=(2, 3, 4), keepdim=True)
-    x = mean + (x - mean) * contrast
-    grey = (torch.rand(n, generator=generator) < _GREY_PROBABILITY).to(x.device)
-    luma = (x * torch.tensor(_GREY_WEIGHTS, device=x.device).view(1, 1, 3, 1, 1)).sum(
-        2, keepdim=True
-    )
-    x = torch.where(grey.view(n, 1, 1, 1, 1), luma.expand_as(x), x)
-    return x.reshape(n, c, h, w)
+    return (mean + (x - mean) * contrast).reshape(n, c, h, w)
 
 
 def augment_batch(
@@ -143,7 +142,7 @@ def augment_batch(
 
     Returns
     -------
-    images : (B, 3, H, W) float32 tensor
+    images : (B, 3K, H, W) float32 tensor
         Augmented pixels, clipped to [0, 255], on the input's device.
     labels : (B,) int64 tensor
         Labels with left and right swapped where the frame was flipped.
