@@ -1,0 +1,61 @@
+"""Paired comparison of two built-in recipes scored leave-one-recording-out.
+
+Reads two results files of ``benchmarks/train_builtin.py`` (``docs/results/builtin-*.json``,
+which keep the per-frame predictions) and prints, for every recording both left out, the
+first recipe's balanced accuracy minus the second's on the same left-out frames, with a
+paired block-bootstrap interval::
+
+    python benchmarks/builtin_paired.py docs/results/builtin-recipe-colour-fdbaddb.json \\
+        docs/results/builtin-model.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def recipe_row(path: Path, test: str) -> dict[str, Any]:
+    """The recipe's (first) row for left-out recording ``test`` in a results file."""
+    row: dict[str, Any] = json.loads(path.read_text())["leave_one_out_rows"][test][0]
+    return row
+
+
+def paired_rows(a: Path, b: Path) -> list[dict[str, Any]]:
+    """``a``'s recipe minus ``b``'s, per recording both left out, on the same frames."""
+    from qdcnn.direction.scores import format_with_interval, paired_difference
+
+    tests_a = json.loads(a.read_text())["leave_one_out_rows"]
+    tests_b = json.loads(b.read_text())["leave_one_out_rows"]
+    out = []
+    for test in [t for t in tests_a if t in tests_b]:
+        ra, rb = recipe_row(a, test), recipe_row(b, test)
+        labels = np.asarray(ra["test_labels"]).ravel()
+        if not np.array_equal(labels, np.asarray(rb["test_labels"]).ravel()):
+            raise SystemExit(f"{test}: the two files scored different frames")
+        d = paired_difference(
+            labels,
+            np.asarray(ra["predictions"]).ravel(),
+            np.asarray(rb["predictions"]).ravel(),
+            seed=0,
+        )
+        text = ("" if d.value < 0 else "+") + format_with_interval(d.value, d.interval)
+        out.append({"left_out": test, **d.to_dict(), "text": text})
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("a", type=Path, help="results JSON of the first recipe")
+    parser.add_argument("b", type=Path, help="results JSON of the second recipe")
+    args = parser.parse_args()
+    for row in paired_rows(args.a, args.b):
+        print(f"{row['left_out']}: {row['text']}")
+
+
+if __name__ == "__main__":
+    main()
