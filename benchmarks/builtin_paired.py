@@ -19,21 +19,20 @@ from typing import Any
 import numpy as np
 
 
-def recipe_row(path: Path, test: str) -> dict[str, Any]:
-    """The recipe's (first) row for left-out recording ``test`` in a results file."""
-    row: dict[str, Any] = json.loads(path.read_text())["leave_one_out_rows"][test][0]
-    return row
+def left_out_rows(path: Path) -> dict[str, dict[str, Any]]:
+    """Per left-out recording, the recipe's (first) row of a results file."""
+    rows = json.loads(path.read_text())["leave_one_out_rows"]
+    return {test: methods[0] for test, methods in rows.items()}
 
 
 def paired_rows(a: Path, b: Path) -> list[dict[str, Any]]:
     """``a``'s recipe minus ``b``'s, per recording both left out, on the same frames."""
     from qdcnn.direction.scores import format_with_interval, paired_difference
 
-    tests_a = json.loads(a.read_text())["leave_one_out_rows"]
-    tests_b = json.loads(b.read_text())["leave_one_out_rows"]
+    rows_a, rows_b = left_out_rows(a), left_out_rows(b)
     out = []
-    for test in [t for t in tests_a if t in tests_b]:
-        ra, rb = recipe_row(a, test), recipe_row(b, test)
+    for test in [t for t in rows_a if t in rows_b]:
+        ra, rb = rows_a[test], rows_b[test]
         labels = np.asarray(ra["test_labels"]).ravel()
         if not np.array_equal(labels, np.asarray(rb["test_labels"]).ravel()):
             raise SystemExit(f"{test}: the two files scored different frames")

@@ -48,7 +48,7 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
     python benchmarks/train_builtin.py --skip-final --leave-out real-dashcam-sample
         # the saved model kept: (re)score these left-out recordings, update header and JSON
     python benchmarks/train_builtin.py --colour-augment --model /tmp/colour.safetensors \
-        --results docs/results/builtin-recipe-colour-fdbaddb.json
+        --results /tmp/colour.json
         # the colour-randomised variant (docs/builtin-model.md), written elsewhere
 """
 
