@@ -49,6 +49,8 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
         # the saved model kept: (re)score these left-out recordings, update header and JSON
     python benchmarks/train_builtin.py --colour-augment --model /tmp/colour.safetensors \
         --results /tmp/colour.json
+    python benchmarks/train_builtin.py --standardise-frames --model /tmp/std.safetensors \
+        --results /tmp/std.json
         # the colour-randomised variant (docs/builtin-model.md), written elsewhere
 """
 
@@ -187,7 +189,8 @@ def training_options() -> Any:
         progress=False,
         transfer=True,
         balanced=True,
-        params=dict(VARIANT),
+        params={k: v for k, v in VARIANT.items() if k != "standardise_frames"},
+        standardise_frames=bool(VARIANT.get("standardise_frames", False)),
     )
 
 
@@ -385,14 +388,21 @@ def main() -> None:
         action="store_true",
         help="the colour-randomised variant of the recipe (docs/builtin-model.md)",
     )
+    parser.add_argument(
+        "--standardise-frames",
+        action="store_true",
+        help="the variant whose networks put each frame on its own scale (docs/builtin-model.md)",
+    )
     parser.add_argument("--model", type=Path, default=MODEL_PATH, help="model file to write")
     parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
     args = parser.parse_args()
     paths = (args.model.resolve(), args.results.resolve())
-    if args.colour_augment:
-        if MODEL_PATH in paths or RESULTS_PATH in paths:
-            parser.error("--colour-augment: give --model and --results (not the shipped files)")
-        VARIANT["colour_augment"] = True
+    for option in ("colour_augment", "standardise_frames"):
+        if getattr(args, option):
+            VARIANT[option] = True
+    if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
+        flags = " ".join("--" + k.replace("_", "-") for k in VARIANT)
+        parser.error(f"{flags}: give --model and --results (not the shipped files)")
     import torch
 
     from qdcnn.direction.model import DirectionModel

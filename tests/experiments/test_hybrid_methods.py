@@ -19,6 +19,7 @@ from qdcnn.direction.methods import (  # noqa: E402
     balanced_note,
     get_method,
     staged_note,
+    standardise_note,
     with_head,
 )
 from qdcnn.direction.model import DirectionModel, train_direction_model  # noqa: E402
@@ -30,6 +31,7 @@ from qdcnn.experiments.evaluate import (  # noqa: E402
     run_evaluation,
 )
 from qdcnn.experiments.noise.direction import direction_sweep  # noqa: E402
+from qdcnn.models.pilotnet import FrameStandardisation  # noqa: E402
 from qdcnn.runtime.reporting import Collector  # noqa: E402
 
 OPTIONS = TrainingOptions(
@@ -359,3 +361,75 @@ def test_a_resumed_transfer_evaluation_reads_its_trunks_from_the_cache(
     )
     run_evaluation(spec("dnn-pilotnet,qdcnn-head-linear", training=options), Collector())
     assert stage_ones == []
+
+
+def test_standardise_frames_reaches_pilotnet_the_hybrid_its_twin_and_ablations() -> None:
+    options = TrainingOptions(standardise_frames=True, transfer=True)
+    for name in ("dnn-pilotnet", "qdcnn-head", "qdcnn-head-classical", "qdcnn-head-fixed"):
+        estimator = get_method(name).estimator(PipelineConfig(), options)[0]
+        assert estimator.network_params["standardise_frames"] is True
+    hybrid = get_method("qdcnn-head-classical").estimator(PipelineConfig(), options)[0]
+    assert hybrid.network_params == {"head": "classical", "standardise_frames": True}
+    assert hybrid._classical_estimator("pilotnet").network_params == {"standardise_frames": True}
+    plain = get_method("dnn-pilotnet").estimator(PipelineConfig(), TrainingOptions())[0]
+    assert plain.network_params is None
+    quanv = get_method("qdcnn-quanv").estimator(PipelineConfig(), options)[0]
+    assert quanv.network_params == {"head": "quantum"}  # its front reads raw YUV: as usual
+
+
+def test_standardise_frames_says_what_trains_as_usual_and_is_refused_where_it_does_nothing() -> (
+    None
+):
+    methods = [get_method(n) for n in ("dnn-pilotnet", "qdcnn-head-fixed", "lines-logreg")]
+    options = TrainingOptions(standardise_frames=True)
+    assert standardise_note(methods[:2], options) is None
+    assert standardise_note(methods, options) == (
+        "--standardise-frames applies to the PilotNet and qdcnn-head networks; "
+        "lines-logreg trains as usual"
+    )
+    for names in (["qdcnn-quanv"], ["dnn-resnet50", "hog-logreg"]):
+        with pytest.raises(ParameterError) as err:
+            standardise_note([get_method(n) for n in names], options)
+        said = f"{names[0]} is not" if len(names) == 1 else f"none of {', '.join(names)} is"
+        assert str(err.value) == (
+            f"--standardise-frames='set' is invalid: unset: {said} PilotNet or a qdcnn-head network"
+        )
+    assert standardise_note(methods[2:], TrainingOptions()) is None
+    with pytest.raises(ParameterError, match="standardise_frames=1"):
+        TrainingOptions(standardise_frames=1)  # type: ignore[arg-type]
+
+
+def test_cached_folds_and_trunks_tell_standardised_runs_apart(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from qdcnn.models import transfer
+
+    def key(name: str, options: TrainingOptions) -> str:
+        return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
+
+    on = TrainingOptions(standardise_frames=True)
+    assert key("dnn-pilotnet", TrainingOptions()) != key("dnn-pilotnet", on)
+    monkeypatch.setattr(transfer, "_TRUNKS", {})
+    images, labels = lean_frames(60, seed=4)
+    options = replace(OPTIONS, epochs=2, transfer=True, standardise_frames=True)
+    get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0].fit(images, labels)
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
+    assert [r["stage"] for r in hybrid.fit(images, labels).history_] == ["head", "finetune"]
+    assert isinstance(hybrid.model_.front, FrameStandardisation)
+    plain = get_method("qdcnn-head").estimator(
+        PipelineConfig(), replace(options, standardise_frames=False)
+    )
+    assert plain[0].fit(images, labels).history_[0]["stage"] == "classical"  # not that trunk
+
+
+def test_a_standardised_network_decides_alike_in_shade() -> None:
+    images, labels = lean_frames(60, seed=5)
+    options = replace(OPTIONS, epochs=3, standardise_frames=True)
+    model = get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0].fit(images, labels)
+    shaded = (images * 0.6).astype(np.uint8)
+    np.testing.assert_allclose(model.predict_proba(shaded), model.predict_proba(images), atol=0.03)
+    plain = get_method("dnn-pilotnet").estimator(
+        PipelineConfig(), replace(options, standardise_frames=False)
+    )[0]
+    plain.fit(images, labels)
+    assert np.abs(plain.predict_proba(shaded) - plain.predict_proba(images)).max() > 0.03

@@ -24,6 +24,7 @@ from qdcnn.models.persistence import (  # noqa: E402
     load_checkpoint,
     save_checkpoint,
 )
+from qdcnn.models.pilotnet import FrameStandardisation  # noqa: E402
 from qdcnn.persistence import load_model, save_model  # noqa: E402
 
 FRAMES = np.random.default_rng(0).integers(0, 256, (7, 40, 80, 3), dtype=np.uint8)
@@ -342,3 +343,29 @@ def test_a_trunk_from_another_network_is_refused_in_one_line(tmp_path: Path) -> 
         with pytest.raises(InputError) as err:
             CNNDirectionClassifier(arch, trunk_from=path, **params).read_trunk()
         assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_trunk_must_match_the_frame_standardisation(tmp_path: Path) -> None:
+    kw = {"head": "quantum", "standardise_frames": True}
+    network = build_network("qdcnn-head", seed=2, **kw)
+    standardised = CNNDirectionClassifier.from_network(
+        network, "qdcnn-head", device="cpu", num_threads=1, network_params=kw
+    ).save(tmp_path / "standardised.safetensors")
+    plain = hybrid().save(tmp_path / "plain.safetensors")
+    same = CNNDirectionClassifier("qdcnn-head", trunk_from=standardised, network_params=kw)
+    assert set(same.read_trunk()) == {k for k in network.state_dict() if k.startswith("trunk.")}
+    cases = [
+        (
+            standardised,
+            {"head": "quantum"},
+            "its frame standardisation is True, this network's False",
+        ),
+        (plain, kw, "its frame standardisation is False, this network's True"),
+    ]
+    for path, params, message in cases:
+        with pytest.raises(InputError, match=f"--from: {message}"):
+            CNNDirectionClassifier(
+                "qdcnn-head", trunk_from=path, network_params=params
+            ).read_trunk()
+    loaded = CNNDirectionClassifier.load(standardised)
+    assert loaded.network_params == kw and isinstance(loaded.model_.front, FrameStandardisation)

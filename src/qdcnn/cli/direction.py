@@ -104,6 +104,14 @@ BalancedOpt = Annotated[
         "restarts of one-class runs."
     ),
 ]
+StandardiseOpt = Annotated[
+    bool,
+    typer.Option(
+        "--standardise-frames",
+        help="PilotNet and qdcnn-head (twin, ablations): put each frame on its own scale first "
+        "(its planes minus their means, over its Y spread), so shade and dusk look like sun.",
+    ),
+]
 FromOpt = Annotated[
     Path | None,
     typer.Option(
@@ -120,9 +128,10 @@ def training_options(
     threads: int | None,
     progress: bool,
     context: int = 1,
-    *,
     transfer: bool = False,
     balanced: bool = False,
+    standardise_frames: bool = False,
+    *,
     from_model: Path | None = None,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
@@ -138,6 +147,7 @@ def training_options(
         transfer=transfer,
         from_model=from_model,
         balanced=balanced,
+        standardise_frames=standardise_frames,
     )
 
 
@@ -166,6 +176,7 @@ def evaluate_cmd(
     context: ContextOpt = 1,
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
+    standardise: StandardiseOpt = False,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -200,7 +211,7 @@ def evaluate_cmd(
             gap,
             inner_folds,
             training_options(
-                epochs, weights, threads, not as_json, context, transfer=transfer, balanced=balanced
+                epochs, weights, threads, not as_json, context, transfer, balanced, standardise
             ),
             use_cache=cache,
             scheduler=scheduler,
@@ -213,6 +224,11 @@ def evaluate_cmd(
         result = run_evaluation(spec, CliReporter(as_json, quiet=quiet))
     except QdcnnError as exc:
         raise fail(exc) from None
+    _finish_evaluation(result, as_json)
+
+
+def _finish_evaluation(result: EvaluationResult, as_json: bool) -> None:
+    """Emit or print ``result`` (comparisons, failures), then exit with its code."""
     if as_json and result.comparisons:
         emit({"comparisons": result.comparisons})
     if as_json and result.failures:
@@ -362,6 +378,7 @@ def train_direction_cmd(
     context: ContextOpt = 1,
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
+    standardise_frames: StandardiseOpt = False,
     from_model: FromOpt = None,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
@@ -400,6 +417,7 @@ def train_direction_cmd(
                 transfer=transfer,
                 balanced=balanced,
                 from_model=from_model,
+                standardise_frames=standardise_frames,
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))

@@ -77,6 +77,11 @@ class TrainingOptions:
     balanced : bool
         Train the classical CNNs (and so the hybrids' stage 1) with the hybrids'
         :data:`HYBRID_RECIPE` (``--balanced``); ``params`` still win where they overlap.
+    standardise_frames : bool
+        PilotNet and ``qdcnn-head`` (its twin and ablations too) put each frame on its own
+        scale first (:class:`~qdcnn.models.pilotnet.FrameStandardisation`,
+        ``--standardise-frames``); the other methods train as usual
+        (:func:`standardise_note`).
 
     ``transfer`` and ``from_model`` change only the hybrids' estimators; other methods
     ignore them (:func:`staged_note` says which, and refuses them without a hybrid).
@@ -92,6 +97,7 @@ class TrainingOptions:
     from_model: Path | None = None
     balanced: bool = False
     trunk_cache: Path | None = None
+    standardise_frames: bool = False
 
     def __post_init__(self) -> None:
         from qdcnn._validation import check_bool, check_int
@@ -101,6 +107,7 @@ class TrainingOptions:
             check_int("threads", self.threads, 1, 1024)
         check_int("context", self.context, 1, 64)
         check_bool("balanced", self.balanced)
+        check_bool("standardise_frames", self.standardise_frames)
         if self.trunk_cache is not None and not isinstance(self.trunk_cache, str | Path):
             raise ParameterError("trunk_cache", self.trunk_cache, "a folder path or None")
 
@@ -386,12 +393,25 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
             num_threads=options.threads,
             trunk_cache=options.trunk_cache,
             context=options.context,
-            network_params=None if network_params is None else dict(network_params),
+            network_params=_network_params(arch, network_params, options),
             **{**staged, **cnn_params(options)},
         )
         return estimator, {}
 
     return build
+
+
+#: The networks that take ``standardise_frames`` (PilotNet's layers on raw YUV).
+STANDARDISING_NETWORKS = ("pilotnet", "qdcnn-head")
+
+
+def _network_params(
+    arch: str, network_params: Mapping[str, Any] | None, options: TrainingOptions
+) -> dict[str, Any] | None:
+    """The registered ``network_params``, with ``standardise_frames`` when ``options`` ask."""
+    if not (options.standardise_frames and arch in STANDARDISING_NETWORKS):
+        return None if network_params is None else dict(network_params)
+    return {**(network_params or {}), "standardise_frames": True}
 
 
 def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
@@ -435,10 +455,39 @@ def _stage_one(method: DirectionMethod) -> str | None:
     return None
 
 
+def standardise_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
+    """What ``--standardise-frames`` does to ``methods``: it applies to PilotNet and to
+    ``qdcnn-head`` with its twin and ablations; the others train as usual (a note says
+    which). Where it changes nothing it is refused."""
+    if not options.standardise_frames:
+        return None
+    nouns = ("PilotNet and qdcnn-head networks", "PilotNet or a qdcnn-head network")
+    return _applies_note("--standardise-frames", methods, standardise_applies, nouns)
+
+
+def standardise_applies(method: DirectionMethod) -> bool:
+    """Whether ``--standardise-frames`` changes ``method``'s network."""
+    return _network_of(method) in STANDARDISING_NETWORKS
+
+
+def _network_of(method: DirectionMethod) -> str | None:
+    """The registered network ``method`` trains, if it trains one."""
+    if method.name == "dnn-pilotnet":
+        return "pilotnet"
+    for h in HYBRID_NETWORKS:
+        if method.name in (h.name, h.twin, *(name for name, _ in h.ablations)):
+            return h.name
+    return None
+
+
 def option_notes(methods: Sequence[DirectionMethod], options: TrainingOptions) -> list[str]:
-    """The notes of ``--transfer`` / ``--from`` and ``--balanced`` for ``methods``; an option
-    that changes none of them is refused (:class:`ParameterError`)."""
-    notes = (staged_note(methods, options), balanced_note(methods, options))
+    """The notes of ``--transfer`` / ``--from``, ``--balanced`` and ``--standardise-frames``
+    for ``methods``; an option that changes none of them is refused (:class:`ParameterError`)."""
+    notes = (
+        staged_note(methods, options),
+        balanced_note(methods, options),
+        standardise_note(methods, options),
+    )
     return [n for n in notes if n]
 
 

@@ -43,6 +43,7 @@ from qdcnn.direction.methods import (
     get_method,
     option_notes,
     select_methods,
+    standardise_applies,
 )
 from qdcnn.direction.protocol import (
     RESAMPLES,
@@ -264,6 +265,8 @@ def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
         "context": options.context,
         "params": {k: repr(v) for k, v in params.items()},
     }
+    if options.standardise_frames and standardise_applies(m):  # absent otherwise: keys hold
+        key["standardise_frames"] = True
     if m.kind in HYBRID_KINDS:
         key["transfer"] = options.transfer
         if balanced_applies(m, options):  # under --transfer, PilotNet is its stage 1

@@ -9,6 +9,7 @@ References
 from __future__ import annotations
 
 from qdcnn._optional import require
+from qdcnn.errors import ParameterError
 
 require("torch", "the PilotNet model")
 import torch  # noqa: E402
@@ -35,10 +36,19 @@ class PilotNet(nn.Module):
         Dropout probability on the flattened features.
     in_channels : int
         Input planes: 3, or 3K for K frames stacked along channels.
+    standardise_frames : bool
+        Put each frame through :class:`FrameStandardisation` first (not in [1]_).
     """
 
-    def __init__(self, num_classes: int = 3, dropout: float = 0.3, in_channels: int = 3) -> None:
+    def __init__(
+        self,
+        num_classes: int = 3,
+        dropout: float = 0.3,
+        in_channels: int = 3,
+        standardise_frames: bool = False,
+    ) -> None:
         super().__init__()
+        self.standardise = frame_standardisation(standardise_frames)
         self.features = nn.Sequential(
             nn.Conv2d(in_channels, 24, 5, stride=2), nn.ELU(),
             nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
@@ -57,5 +67,35 @@ class PilotNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Logits ``(B, num_classes)`` for a ``(B, in_channels, 66, 200)`` batch."""
-        out: torch.Tensor = self.classifier(self.features(x))
+        out: torch.Tensor = self.classifier(self.features(self.standardise(x)))
         return out
+
+
+class FrameStandardisation(nn.Module):
+    """Each frame on its own scale: its planes minus their means, over its Y spread.
+
+    ``(B, 3K, H, W)`` scaled YUV (K frames stacked) -> the same shape. Every plane of a
+    frame loses its own mean, and all three are divided by twice the standard deviation
+    of the frame's Y plane (plus ``eps``), so a frame's overall brightness, contrast and
+    colour cast no longer reach the network while the relative colours within it do.
+    A road in deep shade or at dusk then looks like the sunlit roads a network trained
+    on (``docs/builtin-model.md``). No parameters: a state dict is unchanged by it.
+    """
+
+    def __init__(self, eps: float = 0.02) -> None:
+        super().__init__()
+        self.eps = eps
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, h, w = x.shape
+        frames = x.reshape(b, c // 3, 3, h * w)
+        centred = frames - frames.mean(dim=-1, keepdim=True)
+        spread = frames[:, :, :1].std(dim=-1, keepdim=True) + self.eps
+        return (0.5 * centred / spread).reshape(b, c, h, w)
+
+
+def frame_standardisation(on: bool) -> nn.Module:
+    """:class:`FrameStandardisation` when ``on``, else the identity."""
+    if not isinstance(on, bool):
+        raise ParameterError("standardise_frames", on, "True or False")
+    return FrameStandardisation() if on else nn.Identity()

@@ -507,6 +507,10 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """The network parameters that are not the head's."""
         return {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
 
+    def _standardises(self) -> bool:
+        """Whether the network puts each frame on its own scale (``standardise_frames``)."""
+        return bool(self._network_kw().get("standardise_frames", False))
+
     def _label(self) -> str:
         """The network's name on the progress bar; a hybrid's classical twin says so."""
         return network_label(self.arch, self._network_kw().get("head"))
@@ -721,6 +725,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             ("input", spec_from_meta(meta.get("input_spec"), path), spec),
             ("frames per input (context)", meta.get("context", 1), int(self.context)),
             ("classes", meta.get("class_names"), list(DIRECTIONS)),
+            ("frame standardisation", _standardises(meta), self._standardises()),
         )
         for what, theirs, ours in checks:
             if theirs != ours:
@@ -930,6 +935,13 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
         restarts, seed = _restarts_from_meta(meta, source)
         self._set_fitted(network, spec, *history_from_meta(meta, source), restarts, seed)
+
+
+def _standardises(meta: dict[str, Any]) -> bool:
+    """Whether a model file's network puts each frame on its own scale."""
+    params = meta.get("params")
+    network = params.get("network_params") if isinstance(params, dict) else None
+    return isinstance(network, dict) and network.get("standardise_frames") is True
 
 
 def _classifier_from_meta(
