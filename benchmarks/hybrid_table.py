@@ -9,6 +9,7 @@ share of the most frequent answer, for the collapse check) and the run's wall an
 
     python benchmarks/hybrid_table.py --data-root ../shared/data --cache ~/.cache/hybrid-table
     python benchmarks/hybrid_table.py --table
+    python benchmarks/hybrid_table.py --standardise-frames --out docs/results/hybrid-standardised
 
 Results go to ``--cache`` (default: qdcnn's own, ``$QDCNN_CACHE`` or
 ``~/.cache/qdcnn``; kept per method, fold, seed and recording), so a stopped run
@@ -95,6 +96,7 @@ def measure(args: argparse.Namespace) -> None:
             "--threads",
             str(args.threads),
             *(["--balanced"] if args.balanced else []),
+            *(["--standardise-frames"] if args.standardise_frames else []),
         ]
         wall, cpu = run_one(name, ["--data", spec], args.out, args.cache, common, with_fold_shares)
         # stage 1 is dnn-pilotnet's run: the hybrid's seconds count stages 2 and 3 only
@@ -109,6 +111,7 @@ def measure(args: argparse.Namespace) -> None:
             commit=_commit(),
             stage1="dnn-pilotnet",
             balanced=args.balanced,
+            standardised=args.standardise_frames,
         )
 
 
@@ -177,9 +180,14 @@ def tables(out: Path) -> None:
 
 
 def _column(name: str, timing: dict[str, Any]) -> str:
-    """A recording's column: its seeds, and whether PilotNet trained with ``--balanced``."""
-    balanced = ", --balanced" if timing.get("balanced") else ""
-    return f"{name} ({RECORDINGS[name][1]} seed(s){balanced})"
+    """A recording's column: its seeds, and whether the run had ``--balanced`` or
+    ``--standardise-frames``."""
+    flags = "".join(f", --{f}" for f in ("balanced", "standardise-frames") if _had(timing, f))
+    return f"{name} ({RECORDINGS[name][1]} seed(s){flags})"
+
+
+def _had(timing: dict[str, Any], flag: str) -> bool:
+    return bool(timing.get("standardised" if flag == "standardise-frames" else flag))
 
 
 def collapse_table(runs: dict[str, Any], names: list[str], methods: list[str]) -> str:
@@ -248,6 +256,11 @@ def main() -> None:
     parser.add_argument("--table", action="store_true", help="only print the tables")
     parser.add_argument(
         "--balanced", action="store_true", help="PilotNet (and stage 1) trained with --balanced"
+    )
+    parser.add_argument(
+        "--standardise-frames",
+        action="store_true",
+        help="PilotNet and the qdcnn-head networks put each frame on its own scale first",
     )
     parser.add_argument("--adopt", help="NAME=SHORT,...: keep runs made outside (see adopt)")
     parser.add_argument("--adopt-dir", type=Path, default=Path("."))
