@@ -175,7 +175,8 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
     )
 
 
-#: Estimator parameters of a recipe variant (``--colour-augment``); empty: the recipe.
+#: Options of a recipe variant (``--colour-augment``, ``--standardise-frames``,
+#: ``--max-shift``); empty: the recipe.
 VARIANT: dict[str, Any] = {}
 
 
@@ -393,15 +394,21 @@ def main() -> None:
         action="store_true",
         help="the variant whose networks put each frame on its own scale (docs/builtin-model.md)",
     )
+    parser.add_argument(
+        "--max-shift",
+        type=float,
+        default=0.0,
+        help="the variant whose training frames shift sideways by up to this share of the width",
+    )
     parser.add_argument("--model", type=Path, default=MODEL_PATH, help="model file to write")
     parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
     args = parser.parse_args()
     paths = (args.model.resolve(), args.results.resolve())
-    for option in ("colour_augment", "standardise_frames"):
+    for option in ("colour_augment", "standardise_frames", "max_shift"):
         if getattr(args, option):
-            VARIANT[option] = True
+            VARIANT[option] = getattr(args, option)
     if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
-        flags = " ".join("--" + k.replace("_", "-") for k in VARIANT)
+        flags = " ".join("--" + k.replace("_", "-") for k in VARIANT)  # the variant's options
         parser.error(f"{flags}: give --model and --results (not the shipped files)")
     import torch
 

@@ -319,18 +319,23 @@ def test_cached_folds_tell_balanced_runs_apart() -> None:
     assert key("hog-logreg", plain) == key("hog-logreg", balanced)
 
 
-def test_balanced_stage_one_is_the_balanced_pilotnet_run(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("flag", ["balanced", "standardise_frames"])
+def test_stage_one_under_a_flag_is_that_flags_pilotnet_run(
+    monkeypatch: pytest.MonkeyPatch, flag: str
+) -> None:
     from qdcnn.models import transfer
 
     monkeypatch.setattr(transfer, "_TRUNKS", {})
     images, labels = lean_frames(60, seed=4)
-    options = replace(OPTIONS, epochs=2, transfer=True, balanced=True)
+    options = replace(OPTIONS, epochs=2, transfer=True, **{flag: True})
     get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0].fit(images, labels)
     hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
     assert [r["stage"] for r in hybrid.fit(images, labels).history_] == ["head", "finetune"]
-    plain = get_method("qdcnn-head").estimator(PipelineConfig(), replace(options, balanced=False))
+    plain = get_method("qdcnn-head").estimator(PipelineConfig(), replace(options, **{flag: False}))
     stages = [r["stage"] for r in plain[0].fit(images, labels).history_]
-    assert stages[0] == "classical"  # the balanced PilotNet's trunk is not the plain one's
+    assert stages[0] == "classical"  # that PilotNet's trunk is not the plain one's
+    standardised = isinstance(hybrid.model_.front, FrameStandardisation)
+    assert standardised == (flag == "standardise_frames")
 
 
 def test_a_resumed_transfer_evaluation_reads_its_trunks_from_the_cache(
@@ -399,27 +404,15 @@ def test_standardise_frames_says_what_trains_as_usual_and_is_refused_where_it_do
         TrainingOptions(standardise_frames=1)  # type: ignore[arg-type]
 
 
-def test_cached_folds_and_trunks_tell_standardised_runs_apart(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    from qdcnn.models import transfer
-
+def test_cached_folds_tell_standardised_runs_apart() -> None:
     def key(name: str, options: TrainingOptions) -> str:
         return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
 
     on = TrainingOptions(standardise_frames=True)
-    assert key("dnn-pilotnet", TrainingOptions()) != key("dnn-pilotnet", on)
-    monkeypatch.setattr(transfer, "_TRUNKS", {})
-    images, labels = lean_frames(60, seed=4)
-    options = replace(OPTIONS, epochs=2, transfer=True, standardise_frames=True)
-    get_method("dnn-pilotnet").estimator(PipelineConfig(), options)[0].fit(images, labels)
-    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
-    assert [r["stage"] for r in hybrid.fit(images, labels).history_] == ["head", "finetune"]
-    assert isinstance(hybrid.model_.front, FrameStandardisation)
-    plain = get_method("qdcnn-head").estimator(
-        PipelineConfig(), replace(options, standardise_frames=False)
-    )
-    assert plain[0].fit(images, labels).history_[0]["stage"] == "classical"  # not that trunk
+    for name in ("dnn-pilotnet", "qdcnn-head", "qdcnn-head-linear"):
+        assert key(name, TrainingOptions()) != key(name, on)
+    for name in ("hog-logreg", "qdcnn-quanv"):
+        assert key(name, TrainingOptions()) == key(name, on)  # trains as usual
 
 
 def test_a_standardised_network_decides_alike_in_shade() -> None:
