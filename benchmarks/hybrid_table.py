@@ -265,6 +265,8 @@ def main() -> None:
     parser.add_argument("--adopt", help="NAME=SHORT,...: keep runs made outside (see adopt)")
     parser.add_argument("--adopt-dir", type=Path, default=Path("."))
     args = parser.parse_args()
+    if args.standardise_frames and args.out.resolve() == Path("docs/results/hybrid").resolve():
+        parser.error("--standardise-frames: give --out (not README's docs/results/hybrid)")
     if args.adopt:
         adopt(args)
     elif not args.table:

@@ -49,9 +49,10 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
         # the saved model kept: (re)score these left-out recordings, update header and JSON
     python benchmarks/train_builtin.py --colour-augment --model /tmp/colour.safetensors \
         --results /tmp/colour.json
+        # the colour-randomised variant (docs/builtin-model.md), written elsewhere
     python benchmarks/train_builtin.py --standardise-frames --model /tmp/std.safetensors \
         --results /tmp/std.json
-        # the colour-randomised variant (docs/builtin-model.md), written elsewhere
+        # frames standardised (docs/builtin-model.md); --max-shift F: shifted sideways
 """
 
 from __future__ import annotations

@@ -83,3 +83,20 @@ def test_balanced_without_a_cnn_is_refused_in_one_line(tmp_path: Path, command: 
         "PilotNet as stage 1 under --transfer"
     ]
     assert not (tmp_path / "out.safetensors").exists()
+
+
+@pytest.mark.parametrize("command", ["train-direction", "evaluate"])
+def test_standardise_frames_without_a_pilotnet_network_is_refused_in_one_line(
+    tmp_path: Path, command: str
+) -> None:
+    args = [command, "--data", "synthetic:track2:10", "--method", "qdcnn-quanv"]
+    if command == "train-direction":
+        args += ["--out", str(tmp_path / "out.safetensors")]
+    result = runner.invoke(app, [*args, "--standardise-frames"])
+    assert result.exit_code == 2, result.output
+    errors = [line for line in result.output.splitlines() if line.strip()]
+    assert errors == [
+        "error: --standardise-frames='set' is invalid: unset: qdcnn-quanv is not PilotNet or a "
+        "qdcnn-head network"
+    ]
+    assert not (tmp_path / "out.safetensors").exists()

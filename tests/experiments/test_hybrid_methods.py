@@ -426,3 +426,16 @@ def test_a_standardised_network_decides_alike_in_shade() -> None:
     )[0]
     plain.fit(images, labels)
     assert np.abs(plain.predict_proba(shaded) - plain.predict_proba(images)).max() > 0.03
+
+
+def test_a_saved_standardised_pilotnet_loads_standardised(tmp_path: Path) -> None:
+    images, labels = lean_frames(60, seed=6)
+    options = replace(OPTIONS, epochs=2, standardise_frames=True)
+    model = train_direction_model(
+        "dnn-pilotnet", images, labels, PipelineConfig(), "toy", options=options
+    )
+    loaded = DirectionModel.load(model.save(tmp_path / "std.safetensors"))
+    assert isinstance(loaded.estimator.model_.standardise, FrameStandardisation)
+    np.testing.assert_array_equal(
+        loaded.estimator.predict_proba(images), model.estimator.predict_proba(images)
+    )

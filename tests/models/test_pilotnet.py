@@ -49,16 +49,18 @@ def test_frame_standardisation_keeps_each_frame_of_a_stack_apart() -> None:
     scaled[:, 3:] = scaled[:, 3:] * 0.5  # only the second frame is darker
     out, again = FrameStandardisation()(x), FrameStandardisation()(scaled)
     torch.testing.assert_close(out[:, :3], again[:, :3])
-    assert not torch.allclose(out, FrameStandardisation()(x * torch.tensor(0.5)), atol=1e-3)
+    each = torch.cat([FrameStandardisation()(x[:, :3]), FrameStandardisation()(x[:, 3:])], 1)
+    torch.testing.assert_close(out, each)  # a stack is its frames, each on its own
 
 
 def test_standardising_pilotnet_has_the_same_weights_and_answers_the_standardised_frame() -> None:
+    torch.manual_seed(0)
     plain, standardised = PilotNet().eval(), PilotNet(standardise_frames=True).eval()
     assert plain.state_dict().keys() == standardised.state_dict().keys()
     standardised.load_state_dict(plain.state_dict())
     x = _yuv_frames(2)
     torch.testing.assert_close(standardised(x), plain(FrameStandardisation()(x)))
-    torch.testing.assert_close(standardised(0.5 * x), standardised(x), atol=1e-3, rtol=1e-3)
+    torch.testing.assert_close(standardised(0.5 * x), standardised(x), atol=0.01, rtol=0.01)
 
 
 def test_standardise_frames_takes_only_a_bool() -> None:
