@@ -18,9 +18,10 @@ The recipe (seed 0, CPU, 2 torch threads)
   training costs about 10 minutes of CPU on 2 threads. Labels are made on the whole
   recording (smoothing as ``qdcnn evaluate`` does) and then thinned. The simulator tracks
   keep their own unit and default threshold; the real dashcam sample is
-  ``@unit=rad,threshold=p33`` (the straight class = the 33 % smallest |smoothed steering|
-  of all the TRAINING frames, simulator ones included, as the cross-recording protocol
-  resolves it), so it gives three classes.
+  ``@unit=rad,threshold=p33,left=positive`` (the straight class = the 33 % smallest
+  |smoothed steering| of all the TRAINING frames, simulator ones included, as the
+  cross-recording protocol resolves it, so it gives three classes; its steering, a ROS
+  log's, is positive to the left, the simulator's negative: docs/builtin-model.md).
 * Frames are cropped and resized to the network input per recording (the real sample is
   640x480, the simulator 320x160), as ``qdcnn evaluate`` does for a CNN.
 
@@ -82,7 +83,7 @@ RECORDINGS: dict[str, tuple[str, int]] = {
     "udacity-lake-track": ("", 13),
     "udacity-mountain-track": ("", 3),
     "udacity-dark-mountain-track": ("", 15),
-    "real-dashcam-sample": ("@unit=rad,threshold=p33", 3),
+    "real-dashcam-sample": ("@unit=rad,threshold=p33,left=positive", 3),
 }
 SYNTHETIC = ("synthetic:track1:150", "synthetic:track2:150", "synthetic:rain:150")
 LEAVE_OUT = (

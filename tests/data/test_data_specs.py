@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qdcnn.classes import STRAIGHT
+from qdcnn.classes import LEFT, RIGHT, STRAIGHT
 from qdcnn.config import LabelConfig, PipelineConfig
 from qdcnn.data.frames import (
     DataSpec,
@@ -67,7 +67,9 @@ def test_suffix_parses_unit_and_threshold() -> None:
 @pytest.mark.parametrize(
     ("spec", "problem"),
     [
-        ("udacity:x@colour=red", "unknown key 'colour' (keys: unit, threshold)"),
+        ("udacity:x@colour=red", "unknown key 'colour' (keys: unit, threshold, left)"),
+        ("udacity:x@left=right", "left 'right' is not 'negative' or 'positive'"),
+        ("udacity:x@left=positive,left=negative", "'left' given twice"),
         ("udacity:x@unit=miles", "unit 'miles' is not one of norm, rad, deg, auto"),
         ("udacity:x@threshold=wide", "threshold 'wide' is not a number >= 0 or pNN (a percentile)"),
         ("udacity:x@threshold=-0.1", "threshold '-0.1' is not a number >= 0 or pNN (a percentile)"),
@@ -89,6 +91,23 @@ def test_bad_suffixes_name_the_spec_and_the_problem(spec: str, problem: str) -> 
 def test_synthetic_drives_refuse_an_angle_unit() -> None:
     with pytest.raises(ParameterError, match=r"synthetic drive steers in norm"):
         load_frameset("synthetic:track1:20@unit=rad")
+    with pytest.raises(ParameterError, match=r"synthetic drive steers left below zero"):
+        load_frameset("synthetic:track1:20@left=positive")
+
+
+def test_a_recording_that_steers_left_above_zero_is_labelled_the_right_way_round(
+    tmp_path: Path,
+) -> None:
+    steering = np.array([0.5] * 10 + [0.0] * 10 + [-0.5] * 10)  # ROS: left, straight, right
+    root = write_udacity(tmp_path / "ros", steering)
+    assert parse_data_spec(f"udacity:{root}@left=positive").left == "positive"
+    ros = load_frameset(f"udacity:{root}@unit=rad,left=positive")
+    plain = load_frameset(f"udacity:{root}@unit=rad,left=negative")
+    np.testing.assert_array_equal(ros.steering, -steering)
+    np.testing.assert_array_equal(plain.steering, steering)
+    labels = ros.labels(LabelConfig(window=0))
+    assert labels.tolist() == [LEFT] * 10 + [STRAIGHT] * 10 + [RIGHT] * 10
+    assert plain.labels(LabelConfig(window=0)).tolist() == labels[::-1].tolist()
 
 
 def test_global_percentile_option_is_checked() -> None:

@@ -225,12 +225,16 @@ class DataSpec:
         The spec's ``@unit=`` (``norm``, ``rad``, ``deg`` or ``auto``); ``None``: not given.
     threshold : float, Quantile or None
         The spec's ``@threshold=``; ``None``: not given.
+    left : {"negative", "positive"} or None
+        The spec's ``@left=``: the sign of a left turn in the recorded steering; ``None``:
+        not given (negative, the Udacity simulator's convention).
     """
 
     kind: str
     value: str
     unit: str | None = None
     threshold: float | Quantile | None = None
+    left: str | None = None
 
 
 def parse_spec(spec: str) -> tuple[str, str]:
@@ -257,20 +261,26 @@ def parse_data_spec(text: str) -> DataSpec:
     ``threshold=pNN``
         The NN-th percentile (1..99) of ``|smoothed steering|`` over the TRAINING frames,
         pooled across units (:func:`resolve_quantile_threshold`).
+    ``left=negative|positive``
+        The sign of a left turn in its steering. The Udacity simulator and most
+        behavioural-cloning sets steer left below zero (the default); ROS vehicle logs,
+        such as Udacity's real-car Challenge 2 drives, steer left above zero, so their
+        steering is negated on loading.
 
     Examples
     --------
     >>> spec = parse_data_spec("udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33")
     >>> spec.kind, spec.value, spec.unit, spec.threshold
     ('udacity', '../shared/data/real-dashcam-sample', 'rad', Quantile(percent=33.0))
-    >>> parse_data_spec("carla:/a/b")
-    DataSpec(kind='carla', value='/a/b', unit=None, threshold=None)
+    >>> parse_data_spec("carla:/a/b@left=positive")
+    DataSpec(kind='carla', value='/a/b', unit=None, threshold=None, left='positive')
 
     Raises
     ------
     ParameterError
         ``data=<the spec>`` and the problem: a bad kind, an unknown or repeated key, a
-        unit not in the list, a threshold that is neither a number >= 0 nor ``pNN``.
+        unit not in the list, a threshold that is neither a number >= 0 nor ``pNN``, a
+        left sign that is neither ``negative`` nor ``positive``.
     """
     head, suffix = _split_suffix(text)
     try:
@@ -280,7 +290,7 @@ def parse_data_spec(text: str) -> DataSpec:
     settings = _spec_settings(text, suffix)
     unit = settings.get("unit")
     threshold = _spec_threshold(text, settings["threshold"]) if "threshold" in settings else None
-    return DataSpec(kind, value, unit, threshold)
+    return DataSpec(kind, value, unit, threshold, settings.get("left"))
 
 
 def _split_suffix(text: str) -> tuple[str, str]:
@@ -295,14 +305,18 @@ def _spec_settings(text: str, suffix: str) -> dict[str, str]:
         key, eq, val = item.partition("=")
         if not eq:
             raise ParameterError("data", text, f"{item!r} in the @ suffix is not key=value")
-        if key not in ("unit", "threshold"):
-            raise ParameterError("data", text, f"unknown key {key!r} (keys: unit, threshold)")
+        if key not in ("unit", "threshold", "left"):
+            raise ParameterError("data", text, f"unknown key {key!r} (keys: unit, threshold, left)")
         if key in settings:
             raise ParameterError("data", text, f"{key!r} given twice")
         settings[key] = val
     if "unit" in settings and settings["unit"] not in _SPEC_UNITS:
         raise ParameterError(
             "data", text, f"unit {settings['unit']!r} is not one of {', '.join(_SPEC_UNITS)}"
+        )
+    if settings.get("left", "negative") not in ("negative", "positive"):
+        raise ParameterError(
+            "data", text, f"left {settings['left']!r} is not 'negative' or 'positive'"
         )
     return settings
 
@@ -337,8 +351,8 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
     are read lazily; ``steering_unit`` says the unit of their steering (``"auto"``:
     decided from the recording, :func:`qdcnn.data.labels.infer_steering_unit`).
 
-    A spec suffix ``@unit=...,threshold=...`` overrides ``steering_unit`` and the
-    config's label threshold for this recording only, e.g.
+    A spec suffix ``@unit=...,threshold=...,left=...`` overrides ``steering_unit`` and the
+    config's label threshold for this recording only, and says its steering sign, e.g.
     ``udacity:../shared/data/real-dashcam-sample@unit=rad,threshold=p33`` (radians, the
     straight class = the 33 % smallest |smoothed steering| of the training frames).
     A synthetic drive takes ``unit=norm`` or ``auto`` only. A given unit that the values
@@ -348,9 +362,13 @@ def load_frameset(spec: str, *, seed: int = 0, steering_unit: str = "auto") -> F
     if parsed.kind == "synthetic":
         if parsed.unit not in (None, "auto", "norm"):
             raise ParameterError("data", spec, "a synthetic drive steers in norm ([-1, 1])")
+        if parsed.left == "positive":
+            raise ParameterError("data", spec, "a synthetic drive steers left below zero")
         frames = _load_synthetic(spec, parsed.value, seed)
     else:
         frames = _load_recording(spec, parsed, parsed.unit or steering_unit)
+    if parsed.left == "positive":  # stored as everywhere else in qdcnn: negative = left
+        frames.steering = -frames.steering
     frames.label_threshold = parsed.threshold
     return frames
 
