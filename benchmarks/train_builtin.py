@@ -7,9 +7,11 @@ The recipe (seed 0, CPU, 2 torch threads)
   balanced accuracy, restarts when the validation predictions are one class) and the
   two-stage transfer training (``--transfer``: PilotNet first, then the head on the frozen
   trunk, then fine-tuning at a tenth of the rate), :data:`EPOCHS` classical epochs, the
-  existing augmentation (flips, brightness, shadows). Stage 1 is PilotNet under the same
-  recipe (``--balanced``): a model for recordings it never saw meets other class shares,
-  and balanced accuracy is what it is scored by.
+  existing augmentation (flips, brightness, shadows), and every frame put on its own scale
+  (``--standardise-frames``: its planes minus their means, over its Y spread, so a road in
+  shade looks like one in sun). Stage 1 is PilotNet under the same recipe (``--balanced``):
+  a model for recordings it never saw meets other class shares, and balanced accuracy is
+  what it is scored by.
 * Data: the four recordings of ``../shared/data`` and three synthetic presets. Consecutive
   frames of a recording are near duplicates, so each recording is thinned to one frame in
   ``stride`` (:data:`RECORDINGS`: lake 1 in 13, mountain 1 in 3, dark mountain 1 in 15,
@@ -51,9 +53,9 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
     python benchmarks/train_builtin.py --colour-augment --model /tmp/colour.safetensors \
         --results /tmp/colour.json
         # the colour-randomised variant (docs/builtin-model.md), written elsewhere
-    python benchmarks/train_builtin.py --standardise-frames --model /tmp/std.safetensors \
-        --results /tmp/std.json
-        # frames standardised (docs/builtin-model.md); --max-shift F: shifted sideways
+    python benchmarks/train_builtin.py --plain-frames --model /tmp/plain.safetensors \
+        --results /tmp/plain.json
+        # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways
 """
 
 from __future__ import annotations
@@ -177,8 +179,8 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
     )
 
 
-#: Options of a recipe variant (``--colour-augment``, ``--standardise-frames``,
-#: ``--max-shift``); empty: the recipe.
+#: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--max-shift``);
+#: empty: the recipe.
 VARIANT: dict[str, Any] = {}
 
 
@@ -193,7 +195,7 @@ def training_options() -> Any:
         transfer=True,
         balanced=True,
         params={k: v for k, v in VARIANT.items() if k != "standardise_frames"},
-        standardise_frames=bool(VARIANT.get("standardise_frames", False)),
+        standardise_frames=bool(VARIANT.get("standardise_frames", True)),
     )
 
 
@@ -392,9 +394,9 @@ def main() -> None:
         help="the colour-randomised variant of the recipe (docs/builtin-model.md)",
     )
     parser.add_argument(
-        "--standardise-frames",
+        "--plain-frames",
         action="store_true",
-        help="the variant whose networks put each frame on its own scale (docs/builtin-model.md)",
+        help="the variant whose networks do not standardise each frame (docs/builtin-model.md)",
     )
     parser.add_argument(
         "--max-shift",
@@ -406,12 +408,13 @@ def main() -> None:
     parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
     args = parser.parse_args()
     paths = (args.model.resolve(), args.results.resolve())
-    for option in ("colour_augment", "standardise_frames", "max_shift"):
+    for option in ("colour_augment", "max_shift"):
         if getattr(args, option):
             VARIANT[option] = getattr(args, option)
+    if args.plain_frames:
+        VARIANT["standardise_frames"] = False
     if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
-        flags = " ".join("--" + k.replace("_", "-") for k in VARIANT)  # the variant's options
-        parser.error(f"{flags}: give --model and --results (not the shipped files)")
+        parser.error("a recipe variant: give --model and --results (not the shipped files)")
     import torch
 
     from qdcnn.direction.model import DirectionModel
