@@ -65,7 +65,7 @@ SCORE_FOLDS, SCORE_GAP = 5, 5
 #: The built-in QDCNN model, shipped with the package (``benchmarks/train_builtin.py``).
 QDCNN_FILE = Path(__file__).with_name("builtin_models") / "qdcnn-head.safetensors"
 #: The SHA-256 of :data:`QDCNN_FILE`: a file with another digest is refused at load.
-QDCNN_SHA256 = "e3ceb8d1d28a55f3f580e83ded5302182f34fd06cde2f766e078bc66c30a7856"
+QDCNN_SHA256 = "8d92c66b3c871cb32cf85fc2c38f25426483bc58f666ce37872072c00a1c2987"
 
 
 def builtin_qdcnn_model(path: Path | None = None, sha256: str | None = None) -> DirectionModel:
