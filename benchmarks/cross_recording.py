@@ -10,6 +10,8 @@ time includes decoding, shadow removal and lane features):
 2. The real dashcam sample as a test set, trained on all three simulator recordings, with
    the threshold at the 33rd percentile of |smoothed steering| of the TRAINING frames
    (``@threshold=p33``): at the default threshold 889 of its 1,000 frames are "straight".
+   Its steering is positive to the left (``left=positive``); the results kept from before
+   5cc9212 took it the other way, so its left and right labels were swapped there.
 
 Each run's JSON lines (predictions left out) and wall time go to ``--out``; ``--table``
 prints README's Markdown tables from those files without recomputing anything::
@@ -61,7 +63,7 @@ def runs(root: Path) -> dict[str, list[str]]:
     loo = ["--protocol", "leave-one-out", *(a for s in sims for a in ("--data", s))]
     p33 = [f"{s}@threshold=p33" for s in sims]
     real = [*(a for s in p33 for a in ("--train", s))]
-    real += ["--test", f"udacity:{root / REAL}@unit=rad,threshold=p33"]
+    real += ["--test", f"udacity:{root / REAL}@unit=rad,threshold=p33,left=positive"]
     return {"leave-one-out": loo, "real-sample": real}
 
 
