@@ -28,7 +28,7 @@ from sklearn.base import BaseEstimator
 
 from qdcnn.config import PipelineConfig
 from qdcnn.errors import ParameterError
-from qdcnn.models.specs import HEADS, HYBRID_NETWORKS, hybrid_of
+from qdcnn.models.specs import HEADS, HYBRID_NETWORKS, HybridNetwork, hybrid_of
 from qdcnn.vision.grouping import GROUPINGS
 
 __all__ = [
@@ -449,9 +449,15 @@ def balanced_applies(method: DirectionMethod, options: TrainingOptions) -> bool:
 
 def _stage_one(method: DirectionMethod) -> str | None:
     """The classical network whose training is ``method``'s transfer stage 1, if any."""
+    family = _hybrid_family(method)
+    return None if family is None else family.classical
+
+
+def _hybrid_family(method: DirectionMethod) -> HybridNetwork | None:
+    """The hybrid ``method`` is (its own, its twin or one of its ablations), if any."""
     for h in HYBRID_NETWORKS:
         if method.name in (h.name, h.twin, *(name for name, _ in h.ablations)):
-            return h.classical
+            return h
     return None
 
 
@@ -474,10 +480,8 @@ def _network_of(method: DirectionMethod) -> str | None:
     """The registered network ``method`` trains, if it trains one."""
     if method.name == "dnn-pilotnet":
         return "pilotnet"
-    for h in HYBRID_NETWORKS:
-        if method.name in (h.name, h.twin, *(name for name, _ in h.ablations)):
-            return h.name
-    return None
+    family = _hybrid_family(method)
+    return None if family is None else family.name
 
 
 def option_notes(methods: Sequence[DirectionMethod], options: TrainingOptions) -> list[str]:

@@ -206,11 +206,7 @@ def qdcnn_head(
     :class:`~qdcnn.models.pilotnet.FrameStandardisation` first, as in its PilotNet."""
     trunk, features = pilotnet_trunk(in_channels, input_size, dropout=dropout)
     front = frame_standardisation(standardise_frames)
-    return HybridNet(
-        None if isinstance(front, nn.Identity) else front,
-        trunk,
-        _make_head(head, features, **head_options),
-    )
+    return HybridNet(front, trunk, _make_head(head, features, **head_options))
 
 
 def qdcnn_uuconv(

@@ -48,7 +48,7 @@ class PilotNet(nn.Module):
         standardise_frames: bool = False,
     ) -> None:
         super().__init__()
-        self.standardise = frame_standardisation(standardise_frames)
+        self.standardise = frame_standardisation(standardise_frames) or nn.Identity()
         self.features = nn.Sequential(
             nn.Conv2d(in_channels, 24, 5, stride=2), nn.ELU(),
             nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
@@ -94,8 +94,8 @@ class FrameStandardisation(nn.Module):
         return (0.5 * centred / spread).reshape(b, c, h, w)
 
 
-def frame_standardisation(on: bool) -> nn.Module:
-    """:class:`FrameStandardisation` when ``on``, else the identity."""
+def frame_standardisation(on: bool) -> FrameStandardisation | None:
+    """:class:`FrameStandardisation` when ``on``, else ``None``."""
     if not isinstance(on, bool):
         raise ParameterError("standardise_frames", on, "True or False")
-    return FrameStandardisation() if on else nn.Identity()
+    return FrameStandardisation() if on else None
