@@ -29,4 +29,5 @@ def full(session: nox.Session) -> None:
     session.install(TORCH, "-e", ".[all,dev]")
     session.run("ruff", "check", ".")
     session.run("mypy")
-    session.run("python", "-m", "pytest", "-q", *session.posargs)
+    # The slowest tests are listed so that a CI log shows where its time goes.
+    session.run("python", "-m", "pytest", "-q", "--durations=30", *session.posargs)
