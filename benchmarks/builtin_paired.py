@@ -3,7 +3,7 @@
 Reads two results files of ``benchmarks/train_builtin.py`` (``docs/results/builtin-*.json``,
 which keep the per-frame predictions) and prints, for every recording both left out, the
 first recipe's balanced accuracy minus the second's on the same left-out frames, with a
-paired block-bootstrap interval::
+paired block-bootstrap interval (a file scored with several seeds counts their mean)::
 
     python benchmarks/builtin_paired.py docs/results/builtin-recipe-colour-fdbaddb.json \\
         docs/results/builtin-model.json
@@ -37,12 +37,8 @@ def paired_rows(a: Path, b: Path) -> list[dict[str, Any]]:
         if not np.array_equal(labels, np.asarray(rb["test_labels"]).ravel()):
             out.append({"left_out": test, "text": "not paired: the files label it differently"})
             continue
-        d = paired_difference(
-            labels,
-            np.asarray(ra["predictions"]).ravel(),
-            np.asarray(rb["predictions"]).ravel(),
-            seed=0,
-        )
+        runs_a, runs_b = (np.asarray(r["predictions"]).reshape(-1, labels.size) for r in (ra, rb))
+        d = paired_difference(labels, runs_a, runs_b, seed=0)
         text = ("" if d.value < 0 else "+") + format_with_interval(d.value, d.interval)
         out.append({"left_out": test, **d.to_dict(), "text": text})
     return out

@@ -56,6 +56,9 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
     python benchmarks/train_builtin.py --plain-frames --model /tmp/plain.safetensors \
         --results /tmp/plain.json
         # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways
+    python benchmarks/train_builtin.py --no-final --seeds 3 --leave-out udacity-lake-track \
+        --results /tmp/seeds.json
+        # only the left-out scores, each pooled over 3 training seeds (0, 1, 2)
 """
 
 from __future__ import annotations
@@ -78,6 +81,8 @@ RESULTS_PATH = REPO / "docs" / "results" / "builtin-model.json"
 METHOD = "qdcnn-head"
 REFERENCES = ("hog-logreg", "lines-logreg")
 SEED = 0
+#: Training runs per left-out recording (``--seeds``): seeds SEED, SEED + 1, ...; pooled.
+SEEDS = 1
 THREADS = 2
 EPOCHS = 15
 #: recording folder -> (spec suffix, training stride): about 400 frames of each.
@@ -260,6 +265,7 @@ def leave_one_out(sets: dict[str, Any], test: str) -> list[dict[str, Any]]:
         training=training_options(),
         train=tuple(sets[n].spec for n in names),
         test=(sets[test].spec,),
+        seeds=SEEDS,
     )
     out, results = [], []
     for method in (METHOD, *REFERENCES):
@@ -329,6 +335,7 @@ def save(
     summary = {
         "recipe": __doc__.split("Leave-one-recording-out")[0].strip() if __doc__ else "",
         "seed": SEED,
+        **({"leave_one_out_seeds": SEEDS} if SEEDS > 1 else {}),
         **({"variant": dict(VARIANT)} if VARIANT else {}),
         "commit": commit(),
         "training": info,
@@ -379,7 +386,7 @@ def _saved_rows(path: Path) -> dict[str, list[dict[str, Any]]]:
     return rows
 
 
-def main() -> None:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--data-root", type=Path, default=REPO.parent / "shared" / "data")
     parser.add_argument("--leave-out", default=",".join(LEAVE_OUT))
@@ -404,8 +411,24 @@ def main() -> None:
         default=0.0,
         help="the variant whose training frames shift sideways by up to this share of the width",
     )
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=SEEDS,
+        help="training runs (seeds 0, 1, ...) per left-out recording, pooled in its scores",
+    )
+    parser.add_argument(
+        "--no-final",
+        action="store_true",
+        help="score the left-out recordings only: no final training, no model file",
+    )
     parser.add_argument("--model", type=Path, default=MODEL_PATH, help="model file to write")
     parser.add_argument("--results", type=Path, default=RESULTS_PATH, help="results JSON")
+    return parser
+
+
+def main() -> None:
+    parser = _parser()
     args = parser.parse_args()
     paths = (args.model.resolve(), args.results.resolve())
     for option in ("colour_augment", "max_shift"):
@@ -415,6 +438,11 @@ def main() -> None:
         VARIANT["standardise_frames"] = False
     if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
         parser.error("a recipe variant: give --model and --results (not the shipped files)")
+    if (args.no_final or args.seeds > 1) and RESULTS_PATH in paths:
+        parser.error("--no-final and --seeds: give --results (not the shipped file)")
+    if args.seeds < 1:
+        parser.error(f"--seeds {args.seeds}: give at least 1")
+    globals()["SEEDS"] = args.seeds
     import torch
 
     from qdcnn.direction.model import DirectionModel
@@ -423,13 +451,15 @@ def main() -> None:
     os.environ.setdefault("OMP_NUM_THREADS", str(THREADS))
     sets = load_sets(args.data_root)
     loo: dict[str, list[dict[str, Any]]] = {}
+    model: Any = None
+    info: dict[str, Any] = {}
     if args.skip_final:  # the saved model, its header updated with the scores
         model = DirectionModel.load(paths[0])
         if model.summary["builtin"].get("variant", {}) != VARIANT:
             parser.error(f"--skip-final: {paths[0]} was trained with another recipe variant")
         info = model.summary["builtin"]["training"]
         loo = {k: v for k, v in _saved_rows(paths[1]).items() if k not in args.leave_out.split(",")}
-    else:
+    elif not args.no_final:
         model, info = train_final(sets)
         print(f"trained on {info['frames']} frames in {info['wall_s']} s", flush=True)
         save(model, info, loo, paths)

@@ -1,0 +1,70 @@
+"""The built-in model's benchmark scripts: their comparisons and their refusals."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from sklearn.metrics import balanced_accuracy_score
+
+BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def scripts() -> tuple[Any, Any]:
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import builtin_paired
+        import train_builtin
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    return builtin_paired, train_builtin
+
+
+def results_file(path: Path, labels: np.ndarray, runs: np.ndarray) -> Path:
+    row = {"test_labels": labels.tolist(), "predictions": runs.tolist()}
+    path.write_text(json.dumps({"leave_one_out_rows": {"road": [row]}}))
+    return path
+
+
+def test_paired_difference_of_files_scored_with_several_seeds(
+    scripts: tuple[Any, Any], tmp_path: Path
+) -> None:
+    paired, _ = scripts
+    rng = np.random.default_rng(0)
+    labels = np.repeat(rng.integers(0, 3, 40), 10)
+    three = np.where(rng.random((3, labels.size)) < 0.7, labels, (labels + 1) % 3)
+    one = np.where(rng.random((1, labels.size)) < 0.5, labels, (labels + 2) % 3)
+    a = results_file(tmp_path / "a.json", labels, three)
+    b = results_file(tmp_path / "b.json", labels, one)
+    (row,) = paired.paired_rows(a, b)
+    mean_a = np.mean([balanced_accuracy_score(labels, run) for run in three])
+    assert row["value"] == pytest.approx(mean_a - balanced_accuracy_score(labels, one[0]))
+    assert row["interval"]["low"] < row["value"] < row["interval"]["high"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--seeds", "3"], "--no-final and --seeds: give --results (not the shipped file)"),
+        (["--no-final"], "--no-final and --seeds: give --results (not the shipped file)"),
+        (["--seeds", "0", "--results", "x.json"], "--seeds 0: give at least 1"),
+    ],
+)
+def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
+    scripts: tuple[Any, Any],
+    argv: list[str],
+    message: str,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    _, train = scripts
+    monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
+    with pytest.raises(SystemExit) as stop:
+        train.main()
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.strip().endswith(f"error: {message}")
