@@ -442,7 +442,8 @@ def main() -> None:
         parser.error("--no-final and --seeds: give --results (not the shipped file)")
     if args.seeds < 1:
         parser.error(f"--seeds {args.seeds}: give at least 1")
-    globals()["SEEDS"] = args.seeds
+    global SEEDS
+    SEEDS = args.seeds
     import torch
 
     from qdcnn.direction.model import DirectionModel
