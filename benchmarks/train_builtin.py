@@ -55,7 +55,8 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
         # the colour-randomised variant (docs/builtin-model.md), written elsewhere
     python benchmarks/train_builtin.py --plain-frames --model /tmp/plain.safetensors \
         --results /tmp/plain.json
-        # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways
+        # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways;
+        # --edge-frames: the networks see each frame's Sobel edges only
     python benchmarks/train_builtin.py --no-final --seeds 3 --leave-out udacity-lake-track \
         --results /tmp/seeds.json
         # only the left-out scores, each pooled over 3 training seeds (0, 1, 2)
@@ -184,9 +185,11 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
     )
 
 
-#: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--max-shift``);
-#: empty: the recipe.
+#: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--edge-frames``,
+#: ``--max-shift``); empty: the recipe.
 VARIANT: dict[str, Any] = {}
+#: The variant keys that are training options rather than estimator parameters.
+FRONTS = ("standardise_frames", "edge_frames")
 
 
 def training_options() -> Any:
@@ -199,8 +202,9 @@ def training_options() -> Any:
         progress=False,
         transfer=True,
         balanced=True,
-        params={k: v for k, v in VARIANT.items() if k != "standardise_frames"},
+        params={k: v for k, v in VARIANT.items() if k not in FRONTS},
         standardise_frames=bool(VARIANT.get("standardise_frames", True)),
+        edge_frames=bool(VARIANT.get("edge_frames", False)),
     )
 
 
@@ -406,6 +410,11 @@ def _parser() -> argparse.ArgumentParser:
         help="the variant whose networks do not standardise each frame (docs/builtin-model.md)",
     )
     parser.add_argument(
+        "--edge-frames",
+        action="store_true",
+        help="the variant whose networks see each frame's edges only (docs/builtin-model.md)",
+    )
+    parser.add_argument(
         "--max-shift",
         type=float,
         default=0.0,
@@ -434,8 +443,14 @@ def main() -> None:
     for option in ("colour_augment", "max_shift"):
         if getattr(args, option):
             VARIANT[option] = getattr(args, option)
-    if args.plain_frames:
+    if args.skip_final and args.no_final:
+        parser.error("--skip-final and --no-final: give one of them")
+    if args.plain_frames and args.edge_frames:
+        parser.error("--plain-frames and --edge-frames: give one of them")
+    if args.plain_frames or args.edge_frames:
         VARIANT["standardise_frames"] = False
+    if args.edge_frames:
+        VARIANT["edge_frames"] = True
     if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
         parser.error("a recipe variant: give --model and --results (not the shipped files)")
     if (args.no_final or args.seeds > 1) and RESULTS_PATH in paths:

@@ -53,6 +53,12 @@ def test_paired_difference_of_files_scored_with_several_seeds(
         (["--seeds", "3"], "--no-final and --seeds: give --results (not the shipped file)"),
         (["--no-final"], "--no-final and --seeds: give --results (not the shipped file)"),
         (["--seeds", "0", "--results", "x.json"], "--seeds 0: give at least 1"),
+        (["--edge-frames"], "a recipe variant: give --model and --results (not the shipped files)"),
+        (["--edge-frames", "--plain-frames"], "--plain-frames and --edge-frames: give one of them"),
+        (
+            ["--skip-final", "--no-final", "--results", "x.json"],
+            "--skip-final and --no-final: give one of them",
+        ),
     ],
 )
 def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
@@ -68,3 +74,15 @@ def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
         train.main()
     assert stop.value.code == 2
     assert capsys.readouterr().err.strip().endswith(f"error: {message}")
+
+
+def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, train = scripts
+    monkeypatch.setattr(train, "VARIANT", {"standardise_frames": False, "edge_frames": True})
+    options = train.training_options()
+    assert options.edge_frames and not options.standardise_frames and options.params == {}
+    monkeypatch.setattr(train, "VARIANT", {})
+    options = train.training_options()
+    assert options.standardise_frames and not options.edge_frames

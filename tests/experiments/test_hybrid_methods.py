@@ -382,6 +382,33 @@ def test_standardise_frames_reaches_pilotnet_the_hybrid_its_twin_and_ablations()
     assert quanv.network_params == {"head": "quantum"}  # its front reads raw YUV: as usual
 
 
+def test_edge_frames_reach_the_same_networks_and_are_told_apart_in_the_cache() -> None:
+    options = TrainingOptions(edge_frames=True, transfer=True)
+    for name in ("dnn-pilotnet", "qdcnn-head", "qdcnn-head-classical", "qdcnn-head-fixed"):
+        estimator = get_method(name).estimator(PipelineConfig(), options)[0]
+        assert estimator.network_params.get("edge_frames") is True
+        assert "standardise_frames" not in estimator.network_params
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), options)[0]
+    assert hybrid._classical_estimator("pilotnet").network_params == {"edge_frames": True}
+    methods = [get_method("dnn-pilotnet"), get_method("lines-logreg")]
+    assert standardise_note(methods, options) == (
+        "--edge-frames applies to the PilotNet and qdcnn-head networks; "
+        "lines-logreg trains as usual"
+    )
+
+    def key(name: str, options: TrainingOptions) -> str:
+        return fold_store(get_method(name), PipelineConfig(), options, {}, "data", True).key
+
+    standardised = TrainingOptions(standardise_frames=True)
+    edges = TrainingOptions(edge_frames=True)
+    for name in ("dnn-pilotnet", "qdcnn-head"):
+        keys = {key(name, o) for o in (TrainingOptions(), standardised, edges)}
+        assert len(keys) == 3
+    assert key("hog-logreg", TrainingOptions()) == key("hog-logreg", edges)
+    with pytest.raises(ParameterError, match="not with standardise_frames"):
+        TrainingOptions(standardise_frames=True, edge_frames=True)
+
+
 def test_standardise_frames_says_what_trains_as_usual_and_is_refused_where_it_does_nothing() -> (
     None
 ):

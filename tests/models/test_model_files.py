@@ -358,9 +358,14 @@ def test_a_trunk_must_match_the_frame_standardisation(tmp_path: Path) -> None:
         (
             standardised,
             {"head": "quantum"},
-            "its frame standardisation is True, this network's False",
+            "its frame front is 'standardised', this network's 'none'",
         ),
-        (plain, kw, "its frame standardisation is False, this network's True"),
+        (plain, kw, "its frame front is 'none', this network's 'standardised'"),
+        (
+            standardised,
+            {"head": "quantum", "edge_frames": True},
+            "its frame front is 'standardised', this network's 'edges'",
+        ),
     ]
     for path, params, message in cases:
         with pytest.raises(InputError, match=f"--from: {message}"):

@@ -7,7 +7,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from qdcnn.errors import ParameterError  # noqa: E402
-from qdcnn.models.pilotnet import FrameStandardisation, PilotNet  # noqa: E402
+from qdcnn.models.pilotnet import EdgeFrames, FrameStandardisation, PilotNet  # noqa: E402
 
 
 def test_layers_and_output_shape() -> None:
@@ -66,3 +66,36 @@ def test_standardising_pilotnet_has_the_same_weights_and_answers_the_standardise
 def test_standardise_frames_takes_only_a_bool() -> None:
     with pytest.raises(ParameterError, match="standardise_frames=1 is invalid: True or False"):
         PilotNet(standardise_frames=1)  # type: ignore[arg-type]
+
+
+def test_edge_frames_ignore_brightness_contrast_and_colour() -> None:
+    edges = EdgeFrames()
+    x = _yuv_frames(3, k=2)
+    recoloured = x.clone()
+    recoloured[:, [1, 2, 4, 5]] = -recoloured[:, [1, 2, 4, 5]]
+    for changed in (x * 0.4 - 0.3, recoloured):
+        torch.testing.assert_close(edges(changed), edges(x), atol=0.03, rtol=0.03)  # eps 0.01
+    out = edges(x).reshape(2, 2, 3, 66, 200)
+    size = out[:, :, 2]
+    torch.testing.assert_close(size, out[:, :, :2].square().sum(2).sqrt(), atol=1e-4, rtol=0)
+    means = size.mean(dim=(-1, -2))
+    assert torch.all((means > 0.49) & (means < 0.5))  # mean / (2 mean + eps)
+
+
+def test_edge_frames_find_a_vertical_edge_and_nothing_on_a_flat_frame() -> None:
+    x = torch.zeros((1, 3, 66, 200))
+    x[:, 0, :, 100:] = 0.8  # Y steps up at column 100; U and V flat
+    out = EdgeFrames()(x)[0]
+    assert torch.all(out[0, :, 99:101] > 0.5) and torch.all(out[1].abs() < 1e-3)
+    assert torch.all(out[:, :, :99].abs() < 1e-3) and torch.all(out[:, :, 101:].abs() < 1e-3)
+    assert torch.all(EdgeFrames()(torch.full((2, 6, 66, 200), 0.3)).abs() < 1e-3)
+
+
+def test_a_frame_gets_one_front_only() -> None:
+    with pytest.raises(ParameterError, match="not with standardise_frames"):
+        PilotNet(standardise_frames=True, edge_frames=True)
+    with pytest.raises(ParameterError, match="edge_frames"):
+        PilotNet(edge_frames="yes")  # type: ignore[arg-type]
+    net = PilotNet(edge_frames=True)
+    assert isinstance(net.standardise, EdgeFrames)
+    assert net.state_dict().keys() == PilotNet().state_dict().keys()

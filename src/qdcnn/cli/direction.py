@@ -112,6 +112,15 @@ StandardiseOpt = Annotated[
         "(its planes minus their means, over its Y spread), so shade and dusk look like sun.",
     ),
 ]
+EdgeFramesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--edge-frames",
+        help="PilotNet and qdcnn-head (twin, ablations): see each frame's edges only (Sobel "
+        "gradients of Y and their size, over the frame's mean size); not with "
+        "--standardise-frames.",
+    ),
+]
 FromOpt = Annotated[
     Path | None,
     typer.Option(
@@ -133,6 +142,7 @@ def training_options(
     standardise_frames: bool = False,
     *,
     from_model: Path | None = None,
+    edge_frames: bool = False,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
 
@@ -148,6 +158,7 @@ def training_options(
         from_model=from_model,
         balanced=balanced,
         standardise_frames=standardise_frames,
+        edge_frames=edge_frames,
     )
 
 
@@ -177,6 +188,7 @@ def evaluate_cmd(
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
     standardise: StandardiseOpt = False,
+    edge_frames: EdgeFramesOpt = False,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -211,7 +223,15 @@ def evaluate_cmd(
             gap,
             inner_folds,
             training_options(
-                epochs, weights, threads, not as_json, context, transfer, balanced, standardise
+                epochs,
+                weights,
+                threads,
+                not as_json,
+                context,
+                transfer,
+                balanced,
+                standardise,
+                edge_frames=edge_frames,
             ),
             use_cache=cache,
             scheduler=scheduler,
@@ -379,6 +399,7 @@ def train_direction_cmd(
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
     standardise_frames: StandardiseOpt = False,
+    edge_frames: EdgeFramesOpt = False,
     from_model: FromOpt = None,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
@@ -418,6 +439,7 @@ def train_direction_cmd(
                 balanced=balanced,
                 from_model=from_model,
                 standardise_frames=standardise_frames,
+                edge_frames=edge_frames,
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))

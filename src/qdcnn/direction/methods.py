@@ -82,6 +82,10 @@ class TrainingOptions:
         scale first (:class:`~qdcnn.models.pilotnet.FrameStandardisation`,
         ``--standardise-frames``); the other methods train as usual
         (:func:`standardise_note`).
+    edge_frames : bool
+        The same networks see each frame's edges only
+        (:class:`~qdcnn.models.pilotnet.EdgeFrames`, ``--edge-frames``); not with
+        ``standardise_frames``.
 
     ``transfer`` and ``from_model`` change only the hybrids' estimators; other methods
     ignore them (:func:`staged_note` says which, and refuses them without a hybrid).
@@ -98,6 +102,7 @@ class TrainingOptions:
     balanced: bool = False
     trunk_cache: Path | None = None
     standardise_frames: bool = False
+    edge_frames: bool = False
 
     def __post_init__(self) -> None:
         from qdcnn._validation import check_bool, check_int
@@ -108,6 +113,11 @@ class TrainingOptions:
         check_int("context", self.context, 1, 64)
         check_bool("balanced", self.balanced)
         check_bool("standardise_frames", self.standardise_frames)
+        check_bool("edge_frames", self.edge_frames)
+        if self.standardise_frames and self.edge_frames:
+            raise ParameterError(
+                "edge_frames", True, "not with standardise_frames (a frame gets one of them)"
+            )
         if self.trunk_cache is not None and not isinstance(self.trunk_cache, str | Path):
             raise ParameterError("trunk_cache", self.trunk_cache, "a folder path or None")
 
@@ -401,17 +411,24 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
     return build
 
 
-#: The networks that take ``standardise_frames`` (PilotNet's layers on raw YUV).
+#: The networks that take ``standardise_frames`` and ``edge_frames`` (PilotNet's layers
+#: on raw YUV).
 STANDARDISING_NETWORKS = ("pilotnet", "qdcnn-head")
 
 
 def _network_params(
     arch: str, network_params: Mapping[str, Any] | None, options: TrainingOptions
 ) -> dict[str, Any] | None:
-    """The registered ``network_params``, with ``standardise_frames`` when ``options`` ask."""
-    if not (options.standardise_frames and arch in STANDARDISING_NETWORKS):
+    """The registered ``network_params``, with ``standardise_frames`` or ``edge_frames``
+    when ``options`` ask."""
+    fronts = {k: True for k in _FRONTS if getattr(options, k)}
+    if not (fronts and arch in STANDARDISING_NETWORKS):
         return None if network_params is None else dict(network_params)
-    return {**(network_params or {}), "standardise_frames": True}
+    return {**(network_params or {}), **fronts}
+
+
+#: The frame fronts a :class:`TrainingOptions` can ask of PilotNet and ``qdcnn-head``.
+_FRONTS = ("standardise_frames", "edge_frames")
 
 
 def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
@@ -462,17 +479,18 @@ def _hybrid_family(method: DirectionMethod) -> HybridNetwork | None:
 
 
 def standardise_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
-    """What ``--standardise-frames`` does to ``methods``: it applies to PilotNet and to
-    ``qdcnn-head`` with its twin and ablations; the others train as usual (a note says
-    which). Where it changes nothing it is refused."""
-    if not options.standardise_frames:
+    """What ``--standardise-frames`` (or ``--edge-frames``) does to ``methods``: it applies
+    to PilotNet and to ``qdcnn-head`` with its twin and ablations; the others train as
+    usual (a note says which). Where it changes nothing it is refused."""
+    if not (options.standardise_frames or options.edge_frames):
         return None
+    what = "--standardise-frames" if options.standardise_frames else "--edge-frames"
     nouns = ("PilotNet and qdcnn-head networks", "PilotNet or a qdcnn-head network")
-    return _applies_note("--standardise-frames", methods, standardise_applies, nouns)
+    return _applies_note(what, methods, standardise_applies, nouns)
 
 
 def standardise_applies(method: DirectionMethod) -> bool:
-    """Whether ``--standardise-frames`` changes ``method``'s network."""
+    """Whether ``--standardise-frames`` (or ``--edge-frames``) changes ``method``'s network."""
     return _network_of(method) in STANDARDISING_NETWORKS
 
 
@@ -485,7 +503,7 @@ def _network_of(method: DirectionMethod) -> str | None:
 
 
 def option_notes(methods: Sequence[DirectionMethod], options: TrainingOptions) -> list[str]:
-    """The notes of ``--transfer`` / ``--from``, ``--balanced`` and ``--standardise-frames``
+    """The notes of ``--transfer`` / ``--from``, ``--balanced`` and the frame fronts
     for ``methods``; an option that changes none of them is refused (:class:`ParameterError`)."""
     notes = (
         staged_note(methods, options),

@@ -265,8 +265,9 @@ def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
         "context": options.context,
         "params": {k: repr(v) for k, v in params.items()},
     }
-    if options.standardise_frames and standardise_applies(m):  # absent otherwise: keys hold
-        key["standardise_frames"] = True
+    for front in ("standardise_frames", "edge_frames"):  # absent when off: old keys hold
+        if getattr(options, front) and standardise_applies(m):
+            key[front] = True
     if m.kind in HYBRID_KINDS:
         key["transfer"] = options.transfer
         if balanced_applies(m, options):  # under --transfer, PilotNet is its stage 1

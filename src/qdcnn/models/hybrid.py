@@ -30,7 +30,7 @@ from typing import Any
 from qdcnn._optional import require
 from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
-from qdcnn.models.pilotnet import PilotNet, frame_standardisation
+from qdcnn.models.pilotnet import PilotNet, frame_front
 from qdcnn.models.quantum_layers import (
     LinearHead,
     QuantumHead,
@@ -200,12 +200,14 @@ def qdcnn_head(
     input_size: tuple[int, int] = _INPUT_SIZE,
     dropout: float = 0.3,
     standardise_frames: bool = False,
+    edge_frames: bool = False,
     **head_options: Any,
 ) -> HybridNet:
     """``qdcnn-head``: PilotNet trunk -> quantum head (or its twin); optionally
-    :class:`~qdcnn.models.pilotnet.FrameStandardisation` first, as in its PilotNet."""
+    :class:`~qdcnn.models.pilotnet.FrameStandardisation` or
+    :class:`~qdcnn.models.pilotnet.EdgeFrames` first, as in its PilotNet."""
     trunk, features = pilotnet_trunk(in_channels, input_size, dropout=dropout)
-    front = frame_standardisation(standardise_frames)
+    front = frame_front(standardise_frames, edge_frames)
     return HybridNet(front, trunk, _make_head(head, features, **head_options))
 
 

@@ -38,6 +38,8 @@ class PilotNet(nn.Module):
         Input planes: 3, or 3K for K frames stacked along channels.
     standardise_frames : bool
         Put each frame through :class:`FrameStandardisation` first (not in [1]_).
+    edge_frames : bool
+        Put each frame through :class:`EdgeFrames` first instead (not in [1]_).
     """
 
     def __init__(
@@ -46,9 +48,10 @@ class PilotNet(nn.Module):
         dropout: float = 0.3,
         in_channels: int = 3,
         standardise_frames: bool = False,
+        edge_frames: bool = False,
     ) -> None:
         super().__init__()
-        self.standardise = frame_standardisation(standardise_frames) or nn.Identity()
+        self.standardise = frame_front(standardise_frames, edge_frames) or nn.Identity()
         self.features = nn.Sequential(
             nn.Conv2d(in_channels, 24, 5, stride=2), nn.ELU(),
             nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
@@ -94,8 +97,45 @@ class FrameStandardisation(nn.Module):
         return (0.5 * centred / spread).reshape(b, c, h, w)
 
 
-def frame_standardisation(on: bool) -> FrameStandardisation | None:
-    """:class:`FrameStandardisation` when ``on``, else ``None``."""
-    if not isinstance(on, bool):
-        raise ParameterError("standardise_frames", on, "True or False")
-    return FrameStandardisation() if on else None
+class EdgeFrames(nn.Module):
+    """Each frame as its edges only: the Sobel gradients of its Y plane and their size.
+
+    ``(B, 3K, H, W)`` scaled YUV (K frames stacked) -> the same shape: for each frame the
+    horizontal and vertical Sobel derivatives of Y (replicated borders) and the gradient
+    magnitude, all three divided by twice the frame's mean magnitude (plus ``eps``). The
+    colour planes are dropped and a frame's brightness and contrast cancel, so what
+    reaches the network is where the edges are and which way they run: what HOG sees
+    (``docs/builtin-model.md``). No parameters: a state dict is unchanged by it.
+    """
+
+    def __init__(self, eps: float = 0.01) -> None:
+        super().__init__()
+        self.eps = eps
+        sobel_x = torch.tensor([[-1.0, 0.0, 1.0], [-2.0, 0.0, 2.0], [-1.0, 0.0, 1.0]]) / 8
+        kernels = torch.stack([sobel_x, sobel_x.T]).unsqueeze(1)  # (2, 1, 3, 3)
+        self.kernels: torch.Tensor
+        self.register_buffer("kernels", kernels, persistent=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, h, w = x.shape
+        luma = x.reshape(b * (c // 3), 3, h, w)[:, :1]
+        padded = nn.functional.pad(luma, (1, 1, 1, 1), mode="replicate")
+        grad = nn.functional.conv2d(padded, self.kernels)
+        size = grad.square().sum(dim=1, keepdim=True).add(1e-12).sqrt()
+        scale = 2 * size.mean(dim=(1, 2, 3), keepdim=True) + self.eps
+        return (torch.cat([grad, size], dim=1) / scale).reshape(b, c, h, w)
+
+
+def frame_front(standardise: bool, edges: bool = False) -> nn.Module | None:
+    """:class:`FrameStandardisation` when ``standardise``, :class:`EdgeFrames` when
+    ``edges``, else ``None``; never both."""
+    for name, on in (("standardise_frames", standardise), ("edge_frames", edges)):
+        if not isinstance(on, bool):
+            raise ParameterError(name, on, "True or False")
+    if standardise and edges:
+        raise ParameterError(
+            "edge_frames", edges, "not with standardise_frames (a frame gets one of them)"
+        )
+    if edges:
+        return EdgeFrames()
+    return FrameStandardisation() if standardise else None

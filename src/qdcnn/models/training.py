@@ -507,9 +507,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """The network parameters that are not the head's."""
         return {k: v for k, v in self._network_kw().items() if k not in _HEAD_OPTIONS}
 
-    def _standardises(self) -> bool:
-        """Whether the network puts each frame on its own scale (``standardise_frames``)."""
-        return bool(self._network_kw().get("standardise_frames", False))
+    def _front(self) -> str:
+        """What the network does to each frame first (:func:`_front_of`)."""
+        return _front_of(self._network_kw())
 
     def _label(self) -> str:
         """The network's name on the progress bar; a hybrid's classical twin says so."""
@@ -725,7 +725,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
             ("input", spec_from_meta(meta.get("input_spec"), path), spec),
             ("frames per input (context)", meta.get("context", 1), int(self.context)),
             ("classes", meta.get("class_names"), list(DIRECTIONS)),
-            ("frame standardisation", _standardises(meta), self._standardises()),
+            ("frame front", _saved_front(meta), self._front()),
         )
         for what, theirs, ours in checks:
             if theirs != ours:
@@ -937,11 +937,19 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self._set_fitted(network, spec, *history_from_meta(meta, source), restarts, seed)
 
 
-def _standardises(meta: dict[str, Any]) -> bool:
-    """Whether a model file's network puts each frame on its own scale."""
+def _front_of(network_params: dict[str, Any]) -> str:
+    """``"standardised"``, ``"edges"`` or ``"none"``: what a network with these parameters
+    does to each frame before its trunk."""
+    if network_params.get("edge_frames") is True:
+        return "edges"
+    return "standardised" if network_params.get("standardise_frames") is True else "none"
+
+
+def _saved_front(meta: dict[str, Any]) -> str:
+    """:func:`_front_of` a model file's network."""
     params = meta.get("params")
     network = params.get("network_params") if isinstance(params, dict) else None
-    return isinstance(network, dict) and network.get("standardise_frames") is True
+    return _front_of(network) if isinstance(network, dict) else "none"
 
 
 def _classifier_from_meta(
