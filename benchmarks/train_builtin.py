@@ -451,8 +451,10 @@ def main() -> None:
         VARIANT["standardise_frames"] = False
     if args.edge_frames:
         VARIANT["edge_frames"] = True
-    if VARIANT and (MODEL_PATH in paths or RESULTS_PATH in paths):
-        parser.error("a recipe variant: give --model and --results (not the shipped files)")
+    writes_model = not args.no_final  # --skip-final rewrites the saved model's header
+    if VARIANT and (RESULTS_PATH in paths or (writes_model and MODEL_PATH in paths)):
+        need = "--model and --results (not the shipped files)" if writes_model else "--results"
+        parser.error(f"a recipe variant: give {need}")
     if (args.no_final or args.seeds > 1) and RESULTS_PATH in paths:
         parser.error("--no-final and --seeds: give --results (not the shipped file)")
     if args.seeds < 1:

@@ -54,6 +54,7 @@ def test_paired_difference_of_files_scored_with_several_seeds(
         (["--no-final"], "--no-final and --seeds: give --results (not the shipped file)"),
         (["--seeds", "0", "--results", "x.json"], "--seeds 0: give at least 1"),
         (["--edge-frames"], "a recipe variant: give --model and --results (not the shipped files)"),
+        (["--edge-frames", "--no-final"], "a recipe variant: give --results"),
         (["--edge-frames", "--plain-frames"], "--plain-frames and --edge-frames: give one of them"),
         (
             ["--skip-final", "--no-final", "--results", "x.json"],
@@ -70,6 +71,7 @@ def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
 ) -> None:
     _, train = scripts
     monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
+    monkeypatch.setattr(train, "VARIANT", {})  # main() fills it in
     with pytest.raises(SystemExit) as stop:
         train.main()
     assert stop.value.code == 2
@@ -86,3 +88,22 @@ def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
     monkeypatch.setattr(train, "VARIANT", {})
     options = train.training_options()
     assert options.standardise_frames and not options.edge_frames
+
+
+def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    pytest.importorskip("torch")
+    _, train = scripts
+    argv = ["--edge-frames", "--no-final", "--results", str(tmp_path / "r.json")]
+    monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
+    monkeypatch.setattr(train, "VARIANT", {})
+    monkeypatch.setattr(train, "SEEDS", train.SEEDS)
+
+    def stop(_root: Path) -> None:
+        raise RuntimeError("past the argument checks")
+
+    monkeypatch.setattr(train, "load_sets", stop)
+    with pytest.raises(RuntimeError, match="past the argument checks"):
+        train.main()
+    assert train.VARIANT == {"standardise_frames": False, "edge_frames": True}
