@@ -112,6 +112,7 @@ def band_bounds(
         return None
     first = (scores >= threshold).argmax(axis=2)  # first passing sum from the outer end
     low, high = ks.reshape(rows.size, -1)[rows, first.ravel()].reshape(len(sizes), 2).T
+    low = np.ascontiguousarray(low)  # a column of a (sizes, 2) array: the kernels read it faster
     low.setflags(write=False)
     width = (high - low).astype(np.uint64)
     width.setflags(write=False)

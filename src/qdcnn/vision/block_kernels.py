@@ -277,31 +277,23 @@ def expand_median(block_mask: Any, row_of: Any, col_of: Any, ksize: int) -> Any:
 @njit(**_JIT)
 def _row_box_sums(block_mask: Any, col_of: Any, rad: int) -> Any:
     """Each block row expanded to image width and summed over ``2 rad + 1`` columns
-    (replicated borders). A pixel whose window holds one block value has the sum
-    ``(2 rad + 1) * value``: runs of equal blocks are filled so, and only the pixels within
-    ``rad`` of a change of value are summed one by one."""
-    gh, gw, width = block_mask.shape[0], block_mask.shape[1], col_of.size
-    starts = np.empty(gw + 1, np.intp)  # first pixel of each block column
-    starts[gw] = width
-    for c in range(width - 1, -1, -1):
-        starts[col_of[c]] = c
-    rows = np.empty((gh, width), np.uint8)
+    (replicated borders): the row is written once into a buffer padded with ``rad``
+    copies of its end pixels, and the window sums are ``2 rad + 1`` shifted adds of that
+    buffer, loops the compiler vectorises."""
+    gh, width = block_mask.shape[0], col_of.size
+    rows = np.zeros((gh, width), np.uint8)
+    padded = np.empty(width + 2 * rad, np.uint8)
     for i in range(gh):
-        row, blocks = rows[i], block_mask[i]
-        j = 0
-        while j < gw:
-            value, end = blocks[j], j + 1
-            while end < gw and blocks[end] == value:
-                end += 1
-            row[starts[j] : starts[end]] = value * (2 * rad + 1)
-            if j > 0:  # a change of value at pixel starts[j]
-                edge = starts[j]
-                for c in range(max(edge - rad, 0), min(edge + rad, width)):
-                    total = 0
-                    for d in range(-rad, rad + 1):
-                        total += blocks[col_of[min(max(c + d, 0), width - 1)]]
-                    row[c] = total
-            j = end
+        blocks = block_mask[i]
+        for c in range(width):
+            padded[rad + c] = blocks[col_of[c]]
+        for c in range(rad):
+            padded[c] = padded[rad]
+            padded[rad + width + c] = padded[rad + width - 1]
+        row = rows[i]
+        for d in range(2 * rad + 1):
+            for c in range(width):
+                row[c] += padded[c + d]
     return rows
 
 
