@@ -56,7 +56,8 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
     python benchmarks/train_builtin.py --plain-frames --model /tmp/plain.safetensors \
         --results /tmp/plain.json
         # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways;
-        # --edge-frames: the networks see each frame's Sobel edges only
+        # --edge-frames: the networks see each frame's Sobel edges only; --with-edges: the
+        # standardised frame and its edges (six planes)
     python benchmarks/train_builtin.py --no-final --seeds 3 --leave-out udacity-lake-track \
         --results /tmp/seeds.json
         # only the left-out scores, each pooled over 3 training seeds (0, 1, 2)
@@ -186,7 +187,7 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
 
 
 #: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--edge-frames``,
-#: ``--max-shift``); empty: the recipe.
+#: ``--with-edges``, ``--max-shift``); empty: the recipe.
 VARIANT: dict[str, Any] = {}
 #: The variant keys that are training options rather than estimator parameters.
 FRONTS = ("standardise_frames", "edge_frames")
@@ -415,6 +416,11 @@ def _parser() -> argparse.ArgumentParser:
         help="the variant whose networks see each frame's edges only (docs/builtin-model.md)",
     )
     parser.add_argument(
+        "--with-edges",
+        action="store_true",
+        help="the variant whose networks see each frame standardised and its edges (six planes)",
+    )
+    parser.add_argument(
         "--max-shift",
         type=float,
         default=0.0,
@@ -445,11 +451,12 @@ def main() -> None:
             VARIANT[option] = getattr(args, option)
     if args.skip_final and args.no_final:
         parser.error("--skip-final and --no-final: give one of them")
-    if args.plain_frames and args.edge_frames:
-        parser.error("--plain-frames and --edge-frames: give one of them")
+    fronts = [f for f in ("plain_frames", "edge_frames", "with_edges") if getattr(args, f)]
+    if len(fronts) > 1:
+        parser.error("--plain-frames, --edge-frames and --with-edges: give one of them")
     if args.plain_frames or args.edge_frames:
         VARIANT["standardise_frames"] = False
-    if args.edge_frames:
+    if args.edge_frames or args.with_edges:
         VARIANT["edge_frames"] = True
     writes_model = not args.no_final  # --skip-final rewrites the saved model's header
     if VARIANT and (RESULTS_PATH in paths or (writes_model and MODEL_PATH in paths)):

@@ -55,7 +55,14 @@ def test_paired_difference_of_files_scored_with_several_seeds(
         (["--seeds", "0", "--results", "x.json"], "--seeds 0: give at least 1"),
         (["--edge-frames"], "a recipe variant: give --model and --results (not the shipped files)"),
         (["--edge-frames", "--no-final"], "a recipe variant: give --results"),
-        (["--edge-frames", "--plain-frames"], "--plain-frames and --edge-frames: give one of them"),
+        (
+            ["--edge-frames", "--plain-frames"],
+            "--plain-frames, --edge-frames and --with-edges: give one of them",
+        ),
+        (
+            ["--edge-frames", "--with-edges"],
+            "--plain-frames, --edge-frames and --with-edges: give one of them",
+        ),
         (
             ["--skip-final", "--no-final", "--results", "x.json"],
             "--skip-final and --no-final: give one of them",
@@ -85,6 +92,9 @@ def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
     monkeypatch.setattr(train, "VARIANT", {"standardise_frames": False, "edge_frames": True})
     options = train.training_options()
     assert options.edge_frames and not options.standardise_frames and options.params == {}
+    monkeypatch.setattr(train, "VARIANT", {"edge_frames": True})  # --with-edges
+    options = train.training_options()
+    assert options.edge_frames and options.standardise_frames
     monkeypatch.setattr(train, "VARIANT", {})
     options = train.training_options()
     assert options.standardise_frames and not options.edge_frames

@@ -103,17 +103,3 @@ def test_a_flag_that_changes_no_method_is_refused_in_one_line(
     assert [line for line in result.output.splitlines() if line.strip()] == [message]
     assert not (tmp_path / "out.safetensors").exists()
 
-
-@pytest.mark.parametrize("command", ["train-direction", "evaluate"])
-def test_standardised_and_edge_frames_together_are_refused_in_one_line(
-    tmp_path: Path, command: str
-) -> None:
-    args = [command, "--data", "synthetic:track2:10", "--method", "dnn-pilotnet"]
-    args += ["--standardise-frames", "--edge-frames"]
-    if command == "train-direction":
-        args += ["--out", str(tmp_path / "out.safetensors")]
-    result = runner.invoke(app, args)
-    assert result.exit_code == 2, result.output
-    assert [line for line in result.output.splitlines() if line.strip()] == [
-        "error: edge_frames=True is invalid: not with standardise_frames (a frame gets one of them)"
-    ]

@@ -401,12 +401,21 @@ def test_edge_frames_reach_the_same_networks_and_are_told_apart_in_the_cache() -
 
     standardised = TrainingOptions(standardise_frames=True)
     edges = TrainingOptions(edge_frames=True)
+    both = TrainingOptions(standardise_frames=True, edge_frames=True)
     for name in ("dnn-pilotnet", "qdcnn-head"):
-        keys = {key(name, o) for o in (TrainingOptions(), standardised, edges)}
-        assert len(keys) == 3
+        keys = {key(name, o) for o in (TrainingOptions(), standardised, edges, both)}
+        assert len(keys) == 4
     assert key("hog-logreg", TrainingOptions()) == key("hog-logreg", edges)
-    with pytest.raises(ParameterError, match="not with standardise_frames"):
-        TrainingOptions(standardise_frames=True, edge_frames=True)
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), both)[0]
+    assert hybrid.network_params == {
+        "head": "quantum",
+        "standardise_frames": True,
+        "edge_frames": True,
+    }
+    assert standardise_note(methods, both) == (
+        "--standardise-frames --edge-frames applies to the PilotNet and qdcnn-head networks; "
+        "lines-logreg trains as usual"
+    )
 
 
 def test_standardise_frames_says_what_trains_as_usual_and_is_refused_where_it_does_nothing() -> (

@@ -24,7 +24,7 @@ from qdcnn.models.persistence import (  # noqa: E402
     load_checkpoint,
     save_checkpoint,
 )
-from qdcnn.models.pilotnet import FrameStandardisation  # noqa: E402
+from qdcnn.models.pilotnet import FramesAndEdges, FrameStandardisation  # noqa: E402
 from qdcnn.persistence import load_model, save_model  # noqa: E402
 
 FRAMES = np.random.default_rng(0).integers(0, 256, (7, 40, 80, 3), dtype=np.uint8)
@@ -366,11 +366,32 @@ def test_a_trunk_must_match_the_frame_standardisation(tmp_path: Path) -> None:
             {"head": "quantum", "edge_frames": True},
             "its frame front is 'standardised', this network's 'edges'",
         ),
+        (
+            standardised,
+            {**kw, "edge_frames": True},
+            "its frame front is 'standardised', this network's 'standardised+edges'",
+        ),
     ]
     for path, params, message in cases:
-        with pytest.raises(InputError, match=f"--from: {message}"):
+        with pytest.raises(InputError, match=re.escape(f"--from: {message}")):
             CNNDirectionClassifier(
                 "qdcnn-head", trunk_from=path, network_params=params
             ).read_trunk()
     loaded = CNNDirectionClassifier.load(standardised)
     assert loaded.network_params == kw and isinstance(loaded.model_.front, FrameStandardisation)
+
+
+def test_a_network_with_both_fronts_saves_loads_and_answers_alike(tmp_path: Path) -> None:
+    kw = {"head": "quantum", "standardise_frames": True, "edge_frames": True}
+    network = build_network("qdcnn-head", seed=3, **kw)
+    assert network.trunk[0][0].in_channels == 6
+    saved = CNNDirectionClassifier.from_network(
+        network, "qdcnn-head", device="cpu", num_threads=1, network_params=kw
+    )
+    path = saved.save(tmp_path / "both.safetensors")
+    loaded = CNNDirectionClassifier.load(path)
+    assert loaded.network_params == kw and isinstance(loaded.model_.front, FramesAndEdges)
+    frames = np.random.default_rng(0).integers(0, 256, (4, 160, 320, 3), dtype=np.uint8)
+    np.testing.assert_allclose(loaded.predict_proba(frames), saved.predict_proba(frames))
+    trunk = CNNDirectionClassifier("qdcnn-head", trunk_from=path, network_params=kw).read_trunk()
+    assert trunk["trunk.0.0.weight"].shape[1] == 6

@@ -7,7 +7,12 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from qdcnn.errors import ParameterError  # noqa: E402
-from qdcnn.models.pilotnet import EdgeFrames, FrameStandardisation, PilotNet  # noqa: E402
+from qdcnn.models.pilotnet import (  # noqa: E402
+    EdgeFrames,
+    FramesAndEdges,
+    FrameStandardisation,
+    PilotNet,
+)
 
 
 def test_layers_and_output_shape() -> None:
@@ -91,11 +96,19 @@ def test_edge_frames_find_a_vertical_edge_and_nothing_on_a_flat_frame() -> None:
     assert torch.all(EdgeFrames()(torch.full((2, 6, 66, 200), 0.3)).abs() < 1e-3)
 
 
-def test_a_frame_gets_one_front_only() -> None:
-    with pytest.raises(ParameterError, match="not with standardise_frames"):
-        PilotNet(standardise_frames=True, edge_frames=True)
+def test_both_fronts_give_each_frame_its_standardised_planes_then_its_edges() -> None:
+    x = _yuv_frames(4, k=2)
+    out = FramesAndEdges()(x)
+    assert out.shape == (2, 12, 66, 200)
+    std, edges = FrameStandardisation()(x), EdgeFrames()(x)
+    for k in range(2):
+        torch.testing.assert_close(out[:, 6 * k : 6 * k + 3], std[:, 3 * k : 3 * k + 3])
+        torch.testing.assert_close(out[:, 6 * k + 3 : 6 * k + 6], edges[:, 3 * k : 3 * k + 3])
+    net = PilotNet(in_channels=6, standardise_frames=True, edge_frames=True).eval()
+    assert isinstance(net.standardise, FramesAndEdges) and net.features[0].in_channels == 12
+    assert tuple(net(x).shape) == (2, 3)
     with pytest.raises(ParameterError, match="edge_frames"):
         PilotNet(edge_frames="yes")  # type: ignore[arg-type]
-    net = PilotNet(edge_frames=True)
-    assert isinstance(net.standardise, EdgeFrames)
-    assert net.state_dict().keys() == PilotNet().state_dict().keys()
+    edge_only = PilotNet(edge_frames=True)
+    assert isinstance(edge_only.standardise, EdgeFrames)
+    assert edge_only.state_dict().keys() == PilotNet().state_dict().keys()

@@ -116,9 +116,9 @@ EdgeFramesOpt = Annotated[
     bool,
     typer.Option(
         "--edge-frames",
-        help="PilotNet and qdcnn-head (twin, ablations): see each frame's edges only (Sobel "
-        "gradients of Y and their size, over the frame's mean size); not with "
-        "--standardise-frames.",
+        help="PilotNet and qdcnn-head (twin, ablations): see each frame's edges (Sobel "
+        "gradients of Y and their size, over the frame's mean size): only them, or with "
+        "--standardise-frames both (six planes a frame).",
     ),
 ]
 FromOpt = Annotated[

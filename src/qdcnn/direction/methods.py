@@ -83,9 +83,9 @@ class TrainingOptions:
         ``--standardise-frames``); the other methods train as usual
         (:func:`standardise_note`).
     edge_frames : bool
-        The same networks see each frame's edges only
-        (:class:`~qdcnn.models.pilotnet.EdgeFrames`, ``--edge-frames``); not with
-        ``standardise_frames``.
+        The same networks see each frame's edges
+        (:class:`~qdcnn.models.pilotnet.EdgeFrames`, ``--edge-frames``): only them, or with
+        ``standardise_frames`` both (six planes a frame).
 
     ``transfer`` and ``from_model`` change only the hybrids' estimators; other methods
     ignore them (:func:`staged_note` says which, and refuses them without a hybrid).
@@ -114,10 +114,6 @@ class TrainingOptions:
         check_bool("balanced", self.balanced)
         check_bool("standardise_frames", self.standardise_frames)
         check_bool("edge_frames", self.edge_frames)
-        if self.standardise_frames and self.edge_frames:
-            raise ParameterError(
-                "edge_frames", True, "not with standardise_frames (a frame gets one of them)"
-            )
         if self.trunk_cache is not None and not isinstance(self.trunk_cache, str | Path):
             raise ParameterError("trunk_cache", self.trunk_cache, "a folder path or None")
 
@@ -484,7 +480,11 @@ def standardise_note(methods: Sequence[DirectionMethod], options: TrainingOption
     usual (a note says which). Where it changes nothing it is refused."""
     if not (options.standardise_frames or options.edge_frames):
         return None
-    what = "--standardise-frames" if options.standardise_frames else "--edge-frames"
+    flags = (
+        ("--standardise-frames", options.standardise_frames),
+        ("--edge-frames", options.edge_frames),
+    )
+    what = " ".join(flag for flag, on in flags if on)
     nouns = ("PilotNet and qdcnn-head networks", "PilotNet or a qdcnn-head network")
     return _applies_note(what, methods, standardise_applies, nouns)
 

@@ -30,7 +30,7 @@ from typing import Any
 from qdcnn._optional import require
 from qdcnn._validation import check_choice, check_int
 from qdcnn.errors import ParameterError
-from qdcnn.models.pilotnet import PilotNet, frame_front
+from qdcnn.models.pilotnet import PilotNet, frame_front, front_planes
 from qdcnn.models.quantum_layers import (
     LinearHead,
     QuantumHead,
@@ -204,10 +204,11 @@ def qdcnn_head(
     **head_options: Any,
 ) -> HybridNet:
     """``qdcnn-head``: PilotNet trunk -> quantum head (or its twin); optionally
-    :class:`~qdcnn.models.pilotnet.FrameStandardisation` or
-    :class:`~qdcnn.models.pilotnet.EdgeFrames` first, as in its PilotNet."""
-    trunk, features = pilotnet_trunk(in_channels, input_size, dropout=dropout)
+    :class:`~qdcnn.models.pilotnet.FrameStandardisation`,
+    :class:`~qdcnn.models.pilotnet.EdgeFrames` or both first, as in its PilotNet."""
     front = frame_front(standardise_frames, edge_frames)
+    planes = in_channels * front_planes(standardise_frames, edge_frames)
+    trunk, features = pilotnet_trunk(planes, input_size, dropout=dropout)
     return HybridNet(front, trunk, _make_head(head, features, **head_options))
 
 

@@ -39,7 +39,9 @@ class PilotNet(nn.Module):
     standardise_frames : bool
         Put each frame through :class:`FrameStandardisation` first (not in [1]_).
     edge_frames : bool
-        Put each frame through :class:`EdgeFrames` first instead (not in [1]_).
+        Put each frame through :class:`EdgeFrames` first (not in [1]_); with
+        ``standardise_frames`` too, both (:class:`FramesAndEdges`: six planes a frame, so
+        the first convolution takes twice ``in_channels``).
     """
 
     def __init__(
@@ -52,8 +54,9 @@ class PilotNet(nn.Module):
     ) -> None:
         super().__init__()
         self.standardise = frame_front(standardise_frames, edge_frames) or nn.Identity()
+        planes = in_channels * front_planes(standardise_frames, edge_frames)
         self.features = nn.Sequential(
-            nn.Conv2d(in_channels, 24, 5, stride=2), nn.ELU(),
+            nn.Conv2d(planes, 24, 5, stride=2), nn.ELU(),
             nn.Conv2d(24, 36, 5, stride=2), nn.ELU(),
             nn.Conv2d(36, 48, 5, stride=2), nn.ELU(),
             nn.Conv2d(48, 64, 3), nn.ELU(),
@@ -126,16 +129,38 @@ class EdgeFrames(nn.Module):
         return (torch.cat([grad, size], dim=1) / scale).reshape(b, c, h, w)
 
 
+class FramesAndEdges(nn.Module):
+    """Both fronts: each frame as its three standardised planes
+    (:class:`FrameStandardisation`) followed by its three edge planes (:class:`EdgeFrames`).
+
+    ``(B, 3K, H, W)`` -> ``(B, 6K, H, W)``, frame by frame. The edges carry between roads of
+    other colours, the standardised colours carry what the edges miss
+    (``docs/builtin-model.md``). No parameters.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.frames, self.edges = FrameStandardisation(), EdgeFrames()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, h, w = x.shape
+        parts = [f(x).reshape(b, c // 3, 3, h, w) for f in (self.frames, self.edges)]
+        return torch.cat(parts, dim=2).reshape(b, 2 * c, h, w)
+
+
 def frame_front(standardise: bool, edges: bool = False) -> nn.Module | None:
     """:class:`FrameStandardisation` when ``standardise``, :class:`EdgeFrames` when
-    ``edges``, else ``None``; never both."""
+    ``edges``, :class:`FramesAndEdges` when both, else ``None``."""
     for name, on in (("standardise_frames", standardise), ("edge_frames", edges)):
         if not isinstance(on, bool):
             raise ParameterError(name, on, "True or False")
     if standardise and edges:
-        raise ParameterError(
-            "edge_frames", edges, "not with standardise_frames (a frame gets one of them)"
-        )
+        return FramesAndEdges()
     if edges:
         return EdgeFrames()
     return FrameStandardisation() if standardise else None
+
+
+def front_planes(standardise: bool, edges: bool) -> int:
+    """Planes the front gives per input plane: 2 with both fronts, else 1."""
+    return 2 if standardise and edges else 1

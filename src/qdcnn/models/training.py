@@ -938,11 +938,14 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
 
 
 def _front_of(network_params: dict[str, Any]) -> str:
-    """``"standardised"``, ``"edges"`` or ``"none"``: what a network with these parameters
-    does to each frame before its trunk."""
-    if network_params.get("edge_frames") is True:
-        return "edges"
-    return "standardised" if network_params.get("standardise_frames") is True else "none"
+    """``"standardised"``, ``"edges"``, ``"standardised+edges"`` or ``"none"``: what a
+    network with these parameters does to each frame before its trunk."""
+    on = [
+        name
+        for key, name in (("standardise_frames", "standardised"), ("edge_frames", "edges"))
+        if network_params.get(key) is True
+    ]
+    return "+".join(on) or "none"
 
 
 def _saved_front(meta: dict[str, Any]) -> str:
