@@ -124,7 +124,7 @@ def _record(
     name: str,
     methods: list[str],
     threads: int,
-    cold: bool,
+    cold: bool | None,
     wall: float,
     cpu: float,
     load: bool = True,
@@ -135,11 +135,12 @@ def _record(
         "methods": methods,
         "threads": threads,
         "cpus": os.cpu_count(),
-        "cold_cache": cold,
         "wall_seconds": round(wall, 1),
         "cpu_seconds": round(cpu, 1),
         **extra,
     }
+    if cold is not None:  # None: a cache shared with other runs, so no single answer
+        timing[name]["cold_cache"] = cold
     if load:  # the machine's load as the run ended
         timing[name]["load_average_after"] = os.getloadavg()
     path.write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")

@@ -112,7 +112,7 @@ def measure(args: argparse.Namespace) -> None:
             name,
             methods,
             args.threads,
-            False,
+            None,
             wall,
             cpu,
             commit=_commit(),
@@ -144,7 +144,7 @@ def adopt(args: argparse.Namespace) -> None:
         cpu = sum(float(_after(log, f"{k} time (seconds): ")) for k in ("User", "System"))
         wall = float(_after(log, "wall="))
         methods = RECORDINGS[name][2]
-        _record(args.out / "timing.json", name, methods, args.threads, False, wall, cpu, False)
+        _record(args.out / "timing.json", name, methods, args.threads, None, wall, cpu, False)
 
 
 def _after(text: str, marker: str) -> str:
