@@ -102,4 +102,3 @@ def test_a_flag_that_changes_no_method_is_refused_in_one_line(
     assert result.exit_code == 2, result.output
     assert [line for line in result.output.splitlines() if line.strip()] == [message]
     assert not (tmp_path / "out.safetensors").exists()
-

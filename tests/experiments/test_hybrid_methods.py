@@ -406,7 +406,9 @@ def test_edge_frames_reach_the_same_networks_and_are_told_apart_in_the_cache() -
         keys = {key(name, o) for o in (TrainingOptions(), standardised, edges, both)}
         assert len(keys) == 4
     assert key("hog-logreg", TrainingOptions()) == key("hog-logreg", edges)
-    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), both)[0]
+    hybrid = get_method("qdcnn-head").estimator(PipelineConfig(), replace(both, transfer=True))[0]
+    stage_one = hybrid._classical_estimator("pilotnet").network_params
+    assert stage_one == {"standardise_frames": True, "edge_frames": True}
     assert hybrid.network_params == {
         "head": "quantum",
         "standardise_frames": True,

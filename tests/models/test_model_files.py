@@ -395,3 +395,7 @@ def test_a_network_with_both_fronts_saves_loads_and_answers_alike(tmp_path: Path
     np.testing.assert_allclose(loaded.predict_proba(frames), saved.predict_proba(frames))
     trunk = CNNDirectionClassifier("qdcnn-head", trunk_from=path, network_params=kw).read_trunk()
     assert trunk["trunk.0.0.weight"].shape[1] == 6
+    fronts = {k: True for k in ("standardise_frames", "edge_frames")}
+    two_frames = build_network("pilotnet", in_channels=6, seed=0, **fronts)
+    stacked = build_network("qdcnn-head", in_channels=6, seed=0, head="quantum", **fronts)
+    assert two_frames.features[0].weight.shape == stacked.trunk[0][0].weight.shape == (24, 12, 5, 5)

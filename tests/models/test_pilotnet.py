@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 torch = pytest.importorskip("torch")
@@ -112,3 +114,14 @@ def test_both_fronts_give_each_frame_its_standardised_planes_then_its_edges() ->
     edge_only = PilotNet(edge_frames=True)
     assert isinstance(edge_only.standardise, EdgeFrames)
     assert edge_only.state_dict().keys() == PilotNet().state_dict().keys()
+
+
+def test_a_weights_file_is_refused_with_the_edge_front(tmp_path: Path) -> None:
+    from qdcnn.models.networks import build_network
+
+    path = tmp_path / "pilotnet.pt"
+    torch.save(PilotNet().state_dict(), path)
+    assert build_network("pilotnet", weights=path, standardise_frames=True) is not None
+    for kw in ({"edge_frames": True}, {"edge_frames": True, "standardise_frames": True}):
+        with pytest.raises(ParameterError, match="no weights file with edge_frames"):
+            build_network("pilotnet", weights=path, **kw)

@@ -117,7 +117,7 @@ EdgeFramesOpt = Annotated[
     typer.Option(
         "--edge-frames",
         help="PilotNet and qdcnn-head (twin, ablations): see each frame's edges (Sobel "
-        "gradients of Y and their size, over the frame's mean size): only them, or with "
+        "gradients of Y and their size, over twice the frame's mean size): only them, or with "
         "--standardise-frames both (six planes a frame).",
     ),
 ]

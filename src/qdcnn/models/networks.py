@@ -199,6 +199,13 @@ def build_network(
     entry = network_entry(arch)
     check_int("in_channels", in_channels, 1, 3 * 1024)
     check_int("num_classes", num_classes, 2, 100_000)
+    if weights is not None and kw.get("edge_frames") is True:
+        raise ParameterError(
+            "weights",
+            str(weights),
+            "no weights file with edge_frames: its first layer was trained on colour planes, "
+            "and the edge front gives the network other planes",
+        )
     torch = require("torch", f"building the {arch} network")
     if seed is None:
         network = _call(entry, arch, in_channels, num_classes, kw)
