@@ -140,9 +140,9 @@ def training_options(
     transfer: bool = False,
     balanced: bool = False,
     standardise_frames: bool = False,
+    edge_frames: bool = False,
     *,
     from_model: Path | None = None,
-    edge_frames: bool = False,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
 
@@ -188,7 +188,7 @@ def evaluate_cmd(
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
     standardise: StandardiseOpt = False,
-    edge_frames: EdgeFramesOpt = False,
+    edge: EdgeFramesOpt = False,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -215,6 +215,7 @@ def evaluate_cmd(
         )
         config = lane.config(seed, steering_unit, label_threshold)
         one, loo = recordings(data or [], protocol)
+        progress = not as_json
         spec = EvaluationSpec(
             one,
             with_head(method, head),
@@ -223,15 +224,7 @@ def evaluate_cmd(
             gap,
             inner_folds,
             training_options(
-                epochs,
-                weights,
-                threads,
-                not as_json,
-                context,
-                transfer,
-                balanced,
-                standardise,
-                edge_frames=edge_frames,
+                epochs, weights, threads, progress, context, transfer, balanced, standardise, edge
             ),
             use_cache=cache,
             scheduler=scheduler,
