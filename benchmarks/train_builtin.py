@@ -189,12 +189,10 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
 #: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--edge-frames``,
 #: ``--with-edges``, ``--max-shift``); empty: the recipe.
 VARIANT: dict[str, Any] = {}
-#: The variant keys that are training options rather than estimator parameters.
-FRONTS = ("standardise_frames", "edge_frames")
 
 
 def training_options() -> Any:
-    from qdcnn.direction.methods import TrainingOptions
+    from qdcnn.direction.methods import FRAME_FRONTS, TrainingOptions
 
     epochs = int(os.environ.get("BUILTIN_EPOCHS", EPOCHS))  # a quick try: BUILTIN_EPOCHS=1
     return TrainingOptions(
@@ -203,7 +201,7 @@ def training_options() -> Any:
         progress=False,
         transfer=True,
         balanced=True,
-        params={k: v for k, v in VARIANT.items() if k not in FRONTS},
+        params={k: v for k, v in VARIANT.items() if k not in FRAME_FRONTS},  # options, not params
         standardise_frames=bool(VARIANT.get("standardise_frames", True)),
         edge_frames=bool(VARIANT.get("edge_frames", False)),
     )

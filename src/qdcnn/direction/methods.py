@@ -410,6 +410,9 @@ def _cnn_builder(arch: str, network_params: Mapping[str, Any] | None = None) -> 
 #: The networks that take ``standardise_frames`` and ``edge_frames`` (PilotNet's layers
 #: on raw YUV).
 STANDARDISING_NETWORKS = ("pilotnet", "qdcnn-head")
+#: The frame fronts a :class:`TrainingOptions` can ask of those networks (its field names,
+#: which are also the networks' keyword arguments).
+FRAME_FRONTS = ("standardise_frames", "edge_frames")
 
 
 def _network_params(
@@ -417,14 +420,10 @@ def _network_params(
 ) -> dict[str, Any] | None:
     """The registered ``network_params``, with ``standardise_frames`` or ``edge_frames``
     when ``options`` ask."""
-    fronts = {k: True for k in _FRONTS if getattr(options, k)}
+    fronts = {k: True for k in FRAME_FRONTS if getattr(options, k)}
     if not (fronts and arch in STANDARDISING_NETWORKS):
         return None if network_params is None else dict(network_params)
     return {**(network_params or {}), **fronts}
-
-
-#: The frame fronts a :class:`TrainingOptions` can ask of PilotNet and ``qdcnn-head``.
-_FRONTS = ("standardise_frames", "edge_frames")
 
 
 def staged_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:

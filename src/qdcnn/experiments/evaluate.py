@@ -32,6 +32,7 @@ from qdcnn.data.labels import Quantile, check_labels_usable
 from qdcnn.direction.frame_cache import method_inputs
 from qdcnn.direction.lane_data import LaneData, load_lane_data
 from qdcnn.direction.methods import (
+    FRAME_FRONTS,
     HYBRID_KINDS,
     DirectionMethod,
     TrainingOptions,
@@ -265,7 +266,7 @@ def options_key(options: TrainingOptions, m: DirectionMethod) -> dict[str, Any]:
         "context": options.context,
         "params": {k: repr(v) for k, v in params.items()},
     }
-    for front in ("standardise_frames", "edge_frames"):  # absent when off: old keys hold
+    for front in FRAME_FRONTS:  # absent when off: old keys hold
         if getattr(options, front) and standardise_applies(m):
             key[front] = True
     if m.kind in HYBRID_KINDS:
