@@ -25,8 +25,8 @@ from qdcnn.quantum.uu_dagger import (
     ry_state_table,
     value_to_angle,
 )
+from qdcnn.vision.compiled import KERNELS_VARIABLE
 from qdcnn.vision.shadows import (
-    KERNELS_VARIABLE,
     block_grid,
     compiled_kernels,
     detect_shadows_uu,

@@ -169,7 +169,7 @@ def _time_with_and_without_kernels(
     """:func:`_time_method` with the shadow detector's compiled kernels and with its NumPy
     path (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the kernels gain, measured
     on the same frames while the machine's speed drifts alike for both."""
-    from qdcnn.vision.shadows import KERNELS_VARIABLE
+    from qdcnn.vision.compiled import KERNELS_VARIABLE
 
     before = os.environ.get(KERNELS_VARIABLE)
     passes: dict[str, list[dict[str, Any]]] = {"numba": [], "numpy": []}

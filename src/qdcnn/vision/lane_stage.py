@@ -35,7 +35,7 @@ from qdcnn.vision.lanes import (
     smooth_between,
 )
 from qdcnn.vision.metrics import as_shadow_mask
-from qdcnn.vision.removal import masked_channel_medians, remove_shadows
+from qdcnn.vision.removal import lit_medians, remove_shadows
 from qdcnn.vision.roi import polygon_mask
 
 #: Plans kept per thread (one per frame size and ROI); older ones are dropped beyond it.
@@ -58,7 +58,6 @@ class _Plan:
     spare: NDArray[np.uint8]  # second smoothing buffer
     canny: NDArray[np.uint8]
     target: NDArray[np.bool_]  # shadow pixels of the ROI on the band
-    lit: NDArray[np.bool_]  # lit pixels of the ROI on the band
 
 
 def _plan(shape: tuple[int, int], config: LaneConfig) -> _Plan:
@@ -96,7 +95,6 @@ def _new_plan(
         spare=np.empty(window, dtype=np.uint8),
         canny=np.empty(window, dtype=np.uint8),
         target=np.empty((h, shape[1]), dtype=bool),
-        lit=np.empty((h, shape[1]), dtype=bool),
     )
 
 
@@ -156,13 +154,12 @@ def _grey_window(
         np.copyto(plan.grey, window)
     if shadow_mask is None or plan.region.size == 0:
         return
-    shadow = shadow_mask[plan.band]
-    target = np.logical_and(shadow, plan.region, out=plan.target)
-    lit = np.greater(plan.region, shadow, out=plan.lit)  # in the region and not shadow
-    if not target.any() or not lit.any():
-        return
+    target = plan.target
     pixels = image[plan.band].reshape(target.shape[0], target.shape[1], -1)
-    value = np.rint(masked_channel_medians(pixels, lit)).astype(np.uint8)
+    medians = lit_medians(pixels, plan.region, shadow_mask[plan.band], target)
+    if medians is None:
+        return
+    value = np.rint(medians).astype(np.uint8)
     if image.ndim == 3:
         fill = cv2.cvtColor(value.reshape(1, 1, 3), cv2.COLOR_RGB2GRAY)[0, 0]
     else:

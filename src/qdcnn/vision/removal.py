@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from qdcnn._validation import has_shape
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.vision.compiled import compiled
 from qdcnn.vision.metrics import as_shadow_mask
 
 __all__ = ["REMOVAL_METHODS", "remove_shadows"]
@@ -104,13 +105,12 @@ def remove_shadows(
     # (a band of whole rows is contiguous, so OpenCV writes through to ``out``)
     _, y, _, h = cv2.boundingRect(region.view(np.uint8))
     band = slice(y, y + h)
-    target = shadow[band] & region[band]
-    lit = region[band] & ~shadow[band]
-    if not target.any() or not lit.any():
-        return out
     pixels = img[band].reshape(h, img.shape[1], -1)
+    target = np.empty((h, img.shape[1]), dtype=bool)
+    lit_median = lit_medians(pixels, region[band], shadow[band], target)
+    if lit_median is None:
+        return out
     view = out[band].reshape(pixels.shape)  # writes through to ``out``
-    lit_median = masked_channel_medians(pixels, lit)
     if method == "road-fill":
         # A masked copy from a flat image is ~20x faster than boolean-index assignment
         value = np.rint(lit_median).astype(np.uint8)
@@ -121,6 +121,28 @@ def remove_shadows(
         gain = lit_median / np.maximum(masked_channel_medians(pixels, target), 1.0)
         view[target] = np.clip(np.rint(shadow_values * gain), 0, 255).astype(np.uint8)
     return out
+
+
+def lit_medians(
+    pixels: NDArray[np.uint8],
+    region: NDArray[np.bool_],
+    shadow: NDArray[np.bool_],
+    target: NDArray[np.bool_],
+) -> NDArray[np.float64] | None:
+    """Per-channel median of the lit pixels (in ``region``, not in ``shadow``) of
+    ``pixels`` ``(H, W, C)``; ``target`` (bool, ``(H, W)``) receives the region's shadow
+    pixels. None when the region has no shadow pixel or no lit one (nothing to fill, or
+    nothing to fill it with). One compiled pass
+    (:func:`~qdcnn.vision.removal_kernels.lit_levels`) unless ``QDCNN_KERNELS=numpy``."""
+    kernels = compiled("removal_kernels")
+    if kernels is not None:
+        counts, shaded = kernels.lit_levels(pixels, region, shadow, target)
+        return _medians_from_counts(counts) if shaded and counts[0].any() else None
+    np.logical_and(shadow, region, out=target)
+    lit = np.greater(region, shadow)  # in the region and not shadow
+    if not target.any() or not lit.any():
+        return None
+    return masked_channel_medians(pixels, lit)
 
 
 def _medians_from_counts(counts: NDArray[np.intp]) -> NDArray[np.float64]:

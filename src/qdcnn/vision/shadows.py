@@ -57,6 +57,7 @@ from qdcnn.quantum.uu_dagger import (
     value_to_angle,
 )
 from qdcnn.vision.block_decisions import band_bounds, joined_state_tables, row_compression
+from qdcnn.vision.compiled import compiled
 from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadow_model_file import read_shadow_model, write_shadow_model
 
@@ -664,26 +665,11 @@ def detect_shadows_uu(
     return _detection(mask, blocks, scores, centroid, cfg, source, decided)
 
 
-#: ``QDCNN_KERNELS=numpy`` runs the NumPy detector instead of the compiled kernels.
-KERNELS_VARIABLE = "QDCNN_KERNELS"
-
-
 def compiled_kernels() -> ModuleType | None:
     """:mod:`qdcnn.vision.block_kernels`, or ``None`` when Numba is missing or
     ``QDCNN_KERNELS=numpy`` asks for the NumPy detector (the reference the kernels are
     tested against, and what the benchmarks compare them with)."""
-    if os.environ.get(KERNELS_VARIABLE, "numba") == "numpy":
-        return None
-    return _import_kernels()
-
-
-@lru_cache(maxsize=1)
-def _import_kernels() -> ModuleType | None:
-    try:
-        from qdcnn.vision import block_kernels
-    except ImportError:  # numba not installed: the NumPy detector
-        return None
-    return block_kernels
+    return compiled("block_kernels")
 
 
 def _detect_compiled(

@@ -1,0 +1,35 @@
+"""Which per-frame steps run as compiled Numba kernels, and the switch back to NumPy.
+
+The kernel modules (:mod:`qdcnn.vision.block_kernels`, :mod:`qdcnn.vision.removal_kernels`)
+are imported on first use, so start-up paths never import Numba. ``QDCNN_KERNELS=numpy``
+selects the NumPy paths instead: the references the kernels are tested against, and what
+the benchmarks compare them with.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from functools import cache
+from types import ModuleType
+
+#: ``QDCNN_KERNELS=numpy`` runs the NumPy paths instead of the compiled kernels.
+KERNELS_VARIABLE = "QDCNN_KERNELS"
+
+
+def compiled(module: str) -> ModuleType | None:
+    """The kernel module ``qdcnn.vision.<module>``, or None when Numba is missing or
+    ``QDCNN_KERNELS=numpy`` asks for the NumPy paths."""
+    if os.environ.get(KERNELS_VARIABLE, "numba") == "numpy":
+        return None
+    return _imported(module)
+
+
+@cache
+def _imported(module: str) -> ModuleType | None:
+    try:
+        return importlib.import_module(f"qdcnn.vision.{module}")
+    except ModuleNotFoundError as error:
+        if error.name != "numba":
+            raise
+        return None

@@ -1,0 +1,45 @@
+"""The switch between compiled kernels and NumPy paths."""
+
+from __future__ import annotations
+
+import builtins
+from typing import Any
+
+import pytest
+
+from qdcnn.vision import compiled as compiled_module
+from qdcnn.vision.compiled import KERNELS_VARIABLE, compiled
+
+
+def test_numpy_selects_no_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(KERNELS_VARIABLE, "numpy")
+    assert compiled("block_kernels") is None
+    assert compiled("removal_kernels") is None
+
+
+def test_a_missing_numba_gives_the_numpy_paths(monkeypatch: pytest.MonkeyPatch) -> None:
+    real_import = builtins.__import__
+
+    def no_numba(name: str, *args: Any, **kwargs: Any) -> Any:
+        if name == "numba" or name.startswith("numba."):
+            raise ModuleNotFoundError("No module named 'numba'", name="numba")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.delenv(KERNELS_VARIABLE, raising=False)
+    monkeypatch.setattr(builtins, "__import__", no_numba)
+    monkeypatch.delitem(__import__("sys").modules, "qdcnn.vision.removal_kernels", raising=False)
+    compiled_module._imported.cache_clear()
+    try:
+        assert compiled("removal_kernels") is None
+    finally:
+        compiled_module._imported.cache_clear()
+
+
+def test_another_missing_module_is_not_hidden(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(KERNELS_VARIABLE, raising=False)
+    compiled_module._imported.cache_clear()
+    try:
+        with pytest.raises(ModuleNotFoundError, match="no_such_kernels"):
+            compiled("no_such_kernels")
+    finally:
+        compiled_module._imported.cache_clear()
