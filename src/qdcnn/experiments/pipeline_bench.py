@@ -166,8 +166,8 @@ def _time_method(
 def _time_with_and_without_kernels(
     processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
 ) -> list[dict[str, Any]]:
-    """:func:`_time_method` with the shadow detector's compiled kernels and with its NumPy
-    path (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the kernels gain, measured
+    """:func:`_time_method` with the compiled kernels (shadow detector, road-fill removal)
+    and with their NumPy paths (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the kernels gain, measured
     on the same frames while the machine's speed drifts alike for both."""
     from qdcnn.vision.compiled import KERNELS_VARIABLE
 
@@ -184,7 +184,7 @@ def _time_with_and_without_kernels(
         else:
             os.environ[KERNELS_VARIABLE] = before
     rows = [_median_row(out) for out in passes.values()]
-    rows[1]["method"] += f", NumPy shadow detector ({KERNELS_VARIABLE}=numpy)"
+    rows[1]["method"] += f", NumPy paths, no compiled kernels ({KERNELS_VARIABLE}=numpy)"
     return rows
 
 
