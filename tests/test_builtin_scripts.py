@@ -67,6 +67,11 @@ def test_paired_difference_of_files_scored_with_several_seeds(
             ["--skip-final", "--no-final", "--results", "x.json"],
             "--skip-final and --no-final: give one of them",
         ),
+        (["--ensemble", "0", "--results", "x.json"], "--ensemble 0: give 1 to 9 networks"),
+        (
+            ["--ensemble", "1"],
+            "a recipe variant: give --model and --results (not the shipped files)",
+        ),
     ],
 )
 def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
@@ -91,13 +96,24 @@ def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
     _, train = scripts
     monkeypatch.setattr(train, "VARIANT", {"standardise_frames": False, "edge_frames": True})
     options = train.training_options()
-    assert options.edge_frames and not options.standardise_frames and options.params == {}
+    assert options.edge_frames and not options.standardise_frames
+    assert options.params == {"ensemble": train.ENSEMBLE}
     monkeypatch.setattr(train, "VARIANT", {"edge_frames": True})  # --with-edges
     options = train.training_options()
     assert options.edge_frames and options.standardise_frames
     monkeypatch.setattr(train, "VARIANT", {})
     options = train.training_options()
     assert options.standardise_frames and not options.edge_frames
+
+
+def test_the_recipe_is_an_ensemble_and_one_network_is_a_variant(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, train = scripts
+    monkeypatch.setattr(train, "VARIANT", {})
+    assert train.training_options().params == {"ensemble": train.ENSEMBLE} and train.ENSEMBLE == 3
+    monkeypatch.setattr(train, "VARIANT", {"ensemble": 1, "max_shift": 0.1})
+    assert train.training_options().params == {"max_shift": 0.1}
 
 
 def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(

@@ -238,7 +238,9 @@ def describe_default_model(model: DirectionModel) -> str:
     builtin = model.summary.get("builtin")
     if isinstance(builtin, dict):
         names = ", ".join(builtin.get("training", {}).get("recordings", {})) or model.trained_on
-        return f"built-in {model.method} (trained on {names}; sha256 {QDCNN_SHA256[:12]})"
+        networks = int(getattr(model.estimator, "ensemble", 1))
+        vote = f", a majority vote of {networks} networks" if networks > 1 else ""
+        return f"built-in {model.method}{vote} (trained on {names}; sha256 {QDCNN_SHA256[:12]})"
     cv = model.summary.get("cross_validation", {})
     score = (
         f"; {cv['folds']}-fold contiguous CV accuracy {cv['accuracy']:.3f} "

@@ -167,8 +167,9 @@ def _time_with_and_without_kernels(
     processor: Any, images: list[NDArray[np.uint8]], log: Callable[[str], None]
 ) -> list[dict[str, Any]]:
     """:func:`_time_method` with the compiled kernels (shadow detector, road-fill removal)
-    and with their NumPy paths (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the kernels gain, measured
-    on the same frames while the machine's speed drifts alike for both."""
+    and with their NumPy paths (``QDCNN_KERNELS=numpy``), pass for pass in turns: what the
+    kernels gain, measured on the same frames while the machine's speed drifts alike for
+    both."""
     from qdcnn.vision.compiled import KERNELS_VARIABLE
 
     before = os.environ.get(KERNELS_VARIABLE)

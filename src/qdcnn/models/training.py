@@ -26,13 +26,14 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.base import BaseEstimator, ClassifierMixin, clone
 from sklearn.utils.validation import check_is_fitted
 
 from qdcnn._optional import require
 from qdcnn._validation import check_bool, check_choice, check_input_shape, check_int, has_shape
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
+from qdcnn.models.ensemble import MAX_ENSEMBLE, joined_arrays, split_arrays, vote
 from qdcnn.models.networks import (
     NETWORKS,
     NetworkEntry,
@@ -336,6 +337,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         Further keyword arguments of the network's factory
         (:func:`qdcnn.models.networks.build_network`), such as ``{"dropout": 0.5}``
         for PilotNet; plain JSON values, kept in saved files.
+    ensemble : int
+        Networks trained, with seeds ``seed .. seed + ensemble - 1``, deciding by
+        majority vote (:mod:`qdcnn.models.ensemble`); 1: one network.
 
     Attributes
     ----------
@@ -355,6 +359,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         The epoch whose weights were kept (1-based).
     classes_ : ndarray
         ``[0, 1, 2]``.
+    members_ : list of CNNDirectionClassifier
+        With ``ensemble > 1``: the one-network classifiers that vote (the attributes
+        above are the first one's).
 
     Examples
     --------
@@ -401,6 +408,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         network_params: Mapping[str, Any] | None = None,
         noise: GateNoise | str | None = None,
         train_noise: GateNoise | str | None = None,
+        ensemble: int = 1,
     ) -> None:
         self.arch = arch
         self.epochs = epochs
@@ -435,6 +443,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self.network_params = network_params
         self.noise = noise
         self.train_noise = train_noise
+        self.ensemble = ensemble
 
     # ----------------------------------------------------------------- checks
     def _checked(self) -> tuple[NetworkEntry, TrainSettings]:
@@ -476,6 +485,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         _check_network_params(self.network_params)
         _as_noise("noise", self.noise)
         _as_noise("train_noise", self.train_noise)
+        check_int("ensemble", self.ensemble, 1, MAX_ENSEMBLE)
         return entry, settings
 
     def _check_staged(self) -> None:
@@ -576,6 +586,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """
         entry, settings = self._checked()
         _torch("training a CNN direction classifier")
+        if self.ensemble > 1:
+            return self._fit_members(images, labels, extra_views)
         from qdcnn.models.preprocess import crop_resize, normalise
         from qdcnn.models.trainer import FrameSamples, Trainer, resolve_device, rich_progress
 
@@ -614,6 +626,42 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         )
         _set_quantum_noise(self.model_, _as_noise("noise", self.noise), "noise")
         return self
+
+    def _fit_members(
+        self,
+        images: ArrayLike | Sequence[NDArray[np.uint8]],
+        labels: ArrayLike,
+        extra_views: Sequence[ExtraView],
+    ) -> CNNDirectionClassifier:
+        """The ensemble: one network per seed, each trained as ``ensemble=1`` would."""
+        members = [
+            self._member(self.seed + k).fit(images, labels, extra_views=extra_views)
+            for k in range(self.ensemble)
+        ]
+        self._adopt(members)
+        return self
+
+    def _member(self, seed: int) -> CNNDirectionClassifier:
+        member: CNNDirectionClassifier = clone(self).set_params(ensemble=1, seed=seed)
+        return member
+
+    def _adopt(self, members: list[CNNDirectionClassifier]) -> None:
+        """Take the first member's fitted attributes and keep all members for the vote."""
+        first = members[0]
+        self._set_fitted(
+            first.model_,
+            first.input_spec_,
+            first.history_,
+            first.best_epoch_,
+            first.restarts_,
+            first.seed_,
+        )
+        self.members_ = members
+
+    def _voters(self) -> list[CNNDirectionClassifier]:
+        """The members of a fitted ensemble; empty for one network."""
+        members: list[CNNDirectionClassifier] = getattr(self, "members_", [])
+        return members if len(members) > 1 else []
 
     def _head(self) -> str | None:
         head = self._network_kw().get("head")
@@ -744,6 +792,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         needs a network with a quantum layer (the hybrids).
         """
         check_is_fitted(self, "model_")
+        if self._voters():
+            return np.mean([m.predict_proba(images, noise) for m in self._voters()], axis=0)
         if noise is not None:
             previous = _as_noise("noise", self.noise)
             _set_quantum_noise(self.model_, _as_noise("noise", noise), "noise")
@@ -784,8 +834,19 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
-        :meth:`predict_proba`)."""
-        return np.argmax(self.predict_proba(images, noise), axis=1).astype(np.int64)
+        :meth:`predict_proba`); an ensemble's majority vote."""
+        return self.predict_with_proba(images, noise)[0]
+
+    def predict_with_proba(
+        self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """:meth:`predict` and :meth:`predict_proba` from one pass of each network."""
+        voters = self._voters()
+        if not voters:
+            proba = self.predict_proba(images, noise)
+            return np.argmax(proba, axis=1).astype(np.int64), proba
+        each = [m.predict_proba(images, noise) for m in voters]
+        return vote(np.stack([np.argmax(p, axis=1) for p in each])), np.mean(each, axis=0)
 
     def score(
         self,
@@ -860,13 +921,23 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """
         from qdcnn.models.persistence import save_network
 
+        if self._voters():
+            raise ParameterError(
+                "ensemble",
+                self.ensemble,
+                "1 for a network file (save the ensemble as a direction model)",
+            )
         return save_network(path, self.model_, self._fitted_meta())
 
     def fitted_state(self) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
         """Header fields and weight arrays for a direction model file (:mod:`qdcnn.persistence`)."""
         from qdcnn.models.persistence import state_arrays
 
-        return self._fitted_meta(), state_arrays(self.model_)
+        voters = self._voters()
+        if not voters:
+            return self._fitted_meta(), state_arrays(self.model_)
+        meta = {**self._fitted_meta(), "members": [m._fitted_meta() for m in voters[1:]]}
+        return meta, joined_arrays([state_arrays(m.model_) for m in voters])
 
     def _fitted_meta(self) -> dict[str, Any]:
         """The header of a model file: settings, input spec, history and best epoch."""
@@ -888,7 +959,16 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         if not isinstance(meta, dict) or meta.get("architecture") != self.arch:
             raise InputError(source, f"the weights are not those of a {self.arch!r} network")
         self._checked()
-        self._restore(meta, arrays, source)
+        if self.ensemble == 1:
+            self._restore(meta, arrays, source)
+            return
+        metas = [meta, *_member_metas(meta, self.ensemble, source)]
+        members = [self._member(self.seed) for _ in metas]
+        for member, part, arrays_of in zip(
+            members, metas, split_arrays(arrays, self.ensemble, source), strict=True
+        ):
+            member._restore(part, arrays_of, source)
+        self._adopt(members)
 
     @classmethod
     def load(
@@ -935,6 +1015,19 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         load_state_arrays(network, arrays, source, name=f"qdcnn {self.arch}")
         restarts, seed = _restarts_from_meta(meta, source)
         self._set_fitted(network, spec, *history_from_meta(meta, source), restarts, seed)
+
+
+def _member_metas(
+    meta: dict[str, Any], networks: int, source: str | os.PathLike[str]
+) -> list[dict[str, Any]]:
+    """The headers of an ensemble file's networks after the first."""
+    members = meta.get("members")
+    if not isinstance(members, list) or len(members) != networks - 1:
+        held = len(members) + 1 if isinstance(members, list) else 1
+        raise InputError(source, f"holds {held} networks, its settings say ensemble={networks}")
+    if not all(isinstance(m, dict) for m in members):
+        raise InputError(source, "header field 'members' is not a list of objects")
+    return members
 
 
 def _front_of(network_params: dict[str, Any]) -> str:

@@ -1,0 +1,127 @@
+"""Seed ensembles: the vote, the members each seed trains, and their model files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from qdcnn.errors import InputError
+from qdcnn.models.ensemble import joined_arrays, split_arrays, vote
+
+
+def test_the_vote_takes_the_majority_and_ties_go_to_the_earliest_run() -> None:
+    runs = np.array(
+        [
+            [0, 1, 2, 0, 2, 1],
+            [0, 2, 2, 1, 0, 1],
+            [1, 2, 0, 2, 1, 1],
+        ]
+    )
+    np.testing.assert_array_equal(vote(runs), [0, 2, 2, 0, 2, 1])
+    np.testing.assert_array_equal(vote(runs[:2]), runs[0])  # two runs: the first wins ties
+    np.testing.assert_array_equal(vote(runs[2]), runs[2])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.integers(1, 7).flatmap(
+        lambda k: st.lists(st.lists(st.integers(0, 2), min_size=k, max_size=k), max_size=20)
+    )
+)
+def test_the_vote_equals_counting_frame_by_frame(frames: list[list[int]]) -> None:
+    if not frames:
+        return
+    runs = np.array(frames).T  # (K, N)
+    expected = []
+    for column in frames:
+        counts = np.bincount(column, minlength=3)
+        expected.append(next(c for c in column if counts[c] == counts.max()))
+    np.testing.assert_array_equal(vote(runs), expected)
+
+
+def test_arrays_of_several_networks_split_back() -> None:
+    nets = [{"trunk.w": np.full(2, k), "head.b": np.full(1, 10 + k)} for k in range(3)]
+    joined = joined_arrays(nets)
+    assert set(joined) >= {"trunk.w", "member1.trunk.w", "member2.head.b"}
+    parts = split_arrays(joined, 3, "m.safetensors")
+    for part, net in zip(parts, nets, strict=True):
+        assert part.keys() == net.keys()
+        assert all(np.array_equal(part[k], net[k]) for k in net)
+    with pytest.raises(
+        InputError, match=r"^m.safetensors: holds arrays of network 3, its header says 2$"
+    ):
+        split_arrays(joined, 2, "m.safetensors")
+    with pytest.raises(
+        InputError, match=r"^m.safetensors: holds arrays of fewer networks than its header's 4$"
+    ):
+        split_arrays(joined, 4, "m.safetensors")
+
+
+# ---------------------------------------------------------------- the classifier
+
+torch_needed = pytest.mark.skipif(
+    __import__("importlib").util.find_spec("torch") is None, reason="torch is not installed"
+)
+
+
+@pytest.fixture(scope="module")
+def lines() -> tuple[np.ndarray, np.ndarray]:
+    from tests.models.test_training import line_frames
+
+    return line_frames(48, np.random.default_rng(5))
+
+
+def _small(**kw: object) -> object:
+    from tests.models.test_training import small
+
+    return small(epochs=2, **kw)
+
+
+@torch_needed
+def test_each_member_is_the_run_of_its_seed_and_the_ensemble_votes(
+    lines: tuple[np.ndarray, np.ndarray],
+) -> None:
+    x, y = lines
+    ensemble = _small(ensemble=3).fit(x, y)  # type: ignore[attr-defined]
+    singles = [_small(seed=3 + k).fit(x, y) for k in range(3)]  # type: ignore[attr-defined]
+    for member, single in zip(ensemble.members_, singles, strict=True):
+        np.testing.assert_array_equal(member.predict_proba(x), single.predict_proba(x))
+    runs = np.stack([s.predict(x) for s in singles])
+    np.testing.assert_array_equal(ensemble.predict(x), vote(runs))
+    np.testing.assert_allclose(
+        ensemble.predict_proba(x), np.mean([s.predict_proba(x) for s in singles], axis=0)
+    )
+    assert ensemble.seed_ == 3 and [m.seed_ for m in ensemble.members_] == [3, 4, 5]
+
+
+@torch_needed
+def test_an_ensemble_model_file_round_trips_and_bad_ones_are_named(
+    lines: tuple[np.ndarray, np.ndarray], tmp_path: Path
+) -> None:
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.model import FORMAT_VERSION, KIND, DirectionModel
+    from qdcnn.errors import ParameterError
+    from qdcnn.persistence import load_model, save_model
+
+    x, y = lines
+    clf = _small(ensemble=2).fit(x, y)  # type: ignore[attr-defined]
+    model = DirectionModel("dnn-pilotnet", PipelineConfig(), clf, "lines")
+    path = model.save(tmp_path / "two.safetensors")
+    loaded = DirectionModel.load(path)
+    np.testing.assert_array_equal(loaded.predict(x), clf.predict(x))
+    np.testing.assert_array_equal(loaded.predict_proba(x), clf.predict_proba(x))
+    assert len(loaded.estimator.members_) == 2
+    with pytest.raises(ParameterError, match="ensemble"):
+        clf.save(tmp_path / "network.safetensors")
+    header, arrays = load_model(path, KIND, {FORMAT_VERSION})
+    meta = dict(header.meta)
+    meta["params"] = {**meta["params"], "ensemble": 3}
+    bad = tmp_path / "bad.safetensors"
+    save_model(bad, KIND, FORMAT_VERSION, meta, arrays)
+    with pytest.raises(InputError) as err:
+        DirectionModel.load(bad)
+    assert str(err.value) == f"{bad}: holds 2 networks, its settings say ensemble=3"
