@@ -92,5 +92,69 @@ def test_constant_blocks_calibrate_to_their_value() -> None:
 
 
 def _args(cfg: ShadowConfig) -> tuple[object, ...]:
-    bin_width, angle, iterations, tol, spread = _calibration_settings(cfg)
+    bin_width, angle, iterations, tol, spread, _ = _calibration_settings(cfg)
     return bin_width, angle, _half_angle_tangents(), int(iterations), tol, spread
+
+
+@pytest.mark.parametrize("size", [(320, 160), (1280, 720)])
+def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) -> None:
+    """``detect_calibrated`` gives what ``calibrate_blocks`` then ``detect_scores`` give."""
+    from qdcnn.experiments.shadow_bench import bench_frames
+    from qdcnn.vision.shadows import (
+        _calibrated_value,
+        _pixel_edges,
+        feature_input,
+        state_lookup,
+    )
+
+    cfg = ShadowConfig(shots=None)
+    for image in bench_frames(*size, 3, seed=2):
+        grey = feature_input(image, "intensity")
+        geometry = block_grid(grey.shape[:2], cfg.downsample, cfg.grid)
+        lookup = state_lookup(geometry, grey.shape[1], cfg.downsample)
+        assert lookup is not None
+        edges = _pixel_edges(geometry, cfg.downsample)
+        tables = (_half_angle_tangents(), _calibration_settings(cfg))
+        amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
+        image_of = (geometry.row_of, geometry.col_of, cfg.median_ksize)
+        fused = kernels.detect_calibrated(
+            grey, edges, *tables, amplitudes, cfg.threshold, *image_of
+        )
+        sums, blocks, theta = kernels.calibrate_blocks(grey, *edges, *tables)
+        centroid = _calibrated_value(theta, blocks, cfg)
+        half = centroid * (np.pi / 255.0) / 2.0
+        scores, decided, mask = kernels.detect_scores(
+            sums, amplitudes, np.cos(half), np.sin(half), cfg.threshold, *image_of
+        )
+        assert fused[2] == centroid
+        for ours, theirs in zip(fused[3:], (scores, decided, mask), strict=True):
+            np.testing.assert_allclose(ours, theirs, rtol=1e-15, atol=0)
+        np.testing.assert_array_equal(fused[0], sums)
+        np.testing.assert_array_equal(fused[1], blocks)
+
+
+def test_a_frame_without_a_certified_fixed_point_is_calibrated_with_numpy(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where the fused kernel finds no certified fixed point (NaN: rare, so simulated
+    here), the detector falls back to the NumPy calibration and its reference result."""
+    from types import SimpleNamespace
+
+    from qdcnn.experiments.shadow_bench import bench_frames
+    from qdcnn.vision import shadows
+
+    def no_fixed_point(grey: np.ndarray, *args: object) -> tuple[object, ...]:
+        sums, blocks, *_ = kernels.detect_calibrated(grey, *args)
+        empty = np.empty((0, 0), np.uint8)
+        return sums, blocks, np.nan, np.empty(0), empty, empty.view(np.bool_)
+
+    cfg = ShadowConfig(shots=None)
+    image = bench_frames(320, 160, 1, seed=5)[0]
+    before = shadows.detect_shadows_uu(image, cfg)
+    stub = SimpleNamespace(**vars(kernels))
+    stub.detect_calibrated = no_fixed_point
+    monkeypatch.setattr(shadows, "compiled_kernels", lambda: stub)
+    after = shadows.detect_shadows_uu(image, cfg)
+    assert after.centroid == pytest.approx(before.centroid, rel=1e-12, abs=1e-12)
+    np.testing.assert_array_equal(after.mask, before.mask)
+    assert after.centroid_source == "calibrated"

@@ -84,6 +84,35 @@ def calibrate_blocks(
 
 
 @njit(**_JIT)
+def detect_calibrated(
+    grey: Any,
+    edges: Any,
+    tan_table: Any,
+    settings: Any,
+    amplitudes: Any,
+    threshold: float,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """:func:`calibrate_blocks` and :func:`detect_scores` in one call: the exact
+    detection with the centroid calibrated on the frame (``edges``: the block edges in
+    pixels and the areas; ``settings[5]``: value per angle). The centroid comes back in
+    value units, clipped to ``[0, 255]``; NaN, with empty scores and masks, where the
+    fixed point has no answer (the caller then calibrates with NumPy)."""
+    sums, means, theta = calibrate_blocks(grey, *edges, tan_table, settings)
+    if np.isnan(theta):
+        empty = np.empty((0, 0), np.uint8)
+        return sums, means, theta, np.empty(0), empty, empty.view(np.bool_)
+    centroid = min(max(theta * settings[5], 0.0), 255.0)
+    half = centroid * settings[1] / 2.0
+    scores, blocks, mask = detect_scores(
+        sums, amplitudes, math.cos(half), math.sin(half), threshold, row_of, col_of, ksize
+    )
+    return sums, means, centroid, scores, blocks, mask
+
+
+@njit(**_JIT)
 def band_mask(sums: Any, size_index: Any, low: Any, width: Any) -> Any:
     """Blocks whose sum lies in its size's band ``low <= sum <= low + width``."""
     out = np.empty(sums.shape, np.uint8)

@@ -685,6 +685,10 @@ def _detect_compiled(
     same block sums, decisions and mask as the NumPy path (the calibrated centroid to a
     few units in the last place), in one or two kernel calls."""
     rows, cols, area = _pixel_edges(geometry, cfg.downsample)
+    if cfg.centroid is None and model is None and cfg.shots is None and cfg.median_ksize**2 <= 255:
+        fused = _detect_calibrated(kernels, grey, geometry, lookup, cfg)
+        if fused is not None:
+            return fused
     if cfg.centroid is None and model is None:
         sums, blocks, theta = kernels.calibrate_blocks(
             grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
@@ -704,6 +708,32 @@ def _detect_compiled(
         sums, blocks = kernels.block_sums(grey, rows, cols, area)
     scores, decided, mask = _compiled_decisions(kernels, lookup, sums, centroid, cfg, rng, geometry)
     return _detection(mask, blocks, scores, centroid, cfg, source, decided)
+
+
+def _detect_calibrated(
+    kernels: ModuleType,
+    grey: NDArray[Any],
+    geometry: BlockGrid,
+    lookup: StateLookup,
+    cfg: ShadowConfig,
+) -> ShadowDetection | None:
+    """The exact detection with the centroid calibrated on the frame, in one kernel call
+    (:func:`block_kernels.detect_calibrated`); None where the kernel's fixed point has no
+    answer (the caller then calibrates with NumPy)."""
+    _, blocks, centroid, scores, decided, mask = kernels.detect_calibrated(
+        grey,
+        _pixel_edges(geometry, cfg.downsample),
+        _half_angle_tangents(),
+        _calibration_settings(cfg),
+        (lookup.offsets, lookup.cos_half, lookup.sin_half),
+        cfg.threshold,
+        geometry.row_of,
+        geometry.col_of,
+        cfg.median_ksize,
+    )
+    if centroid != centroid:
+        return None
+    return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
 
 
 def _detect_shot_table(
@@ -830,6 +860,7 @@ def _calibration_settings(cfg: ShadowConfig) -> NDArray[np.float64]:
             cfg.propagation_iterations,
             cfg.propagation_tol,
             MAX_FAST_SPREAD,
+            VALUE_SCALE / np.pi,
         ]
     )
     settings.setflags(write=False)
