@@ -78,7 +78,7 @@ def lines() -> tuple[np.ndarray, np.ndarray]:
 def _small(**kw: object) -> object:
     from tests.models.test_training import small
 
-    return small(epochs=2, **kw)
+    return small(**{"epochs": 2, **kw})
 
 
 @torch_needed
@@ -96,6 +96,16 @@ def test_each_member_is_the_run_of_its_seed_and_the_ensemble_votes(
         ensemble.predict_proba(x), np.mean([s.predict_proba(x) for s in singles], axis=0)
     )
     assert ensemble.seed_ == 3 and [m.seed_ for m in ensemble.members_] == [3, 4, 5]
+
+
+@torch_needed
+def test_each_network_keeps_its_checkpoints_apart(
+    lines: tuple[np.ndarray, np.ndarray], tmp_path: Path
+) -> None:
+    x, y = lines
+    _small(ensemble=2, epochs=1, checkpoint_dir=tmp_path).fit(x, y)  # type: ignore[attr-defined]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["network0", "network1"]
+    assert all((tmp_path / d / "last.safetensors").is_file() for d in ("network0", "network1"))
 
 
 @torch_needed

@@ -635,14 +635,17 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     ) -> CNNDirectionClassifier:
         """The ensemble: one network per seed, each trained as ``ensemble=1`` would."""
         members = [
-            self._member(self.seed + k).fit(images, labels, extra_views=extra_views)
+            self._member(self.seed + k, k).fit(images, labels, extra_views=extra_views)
             for k in range(self.ensemble)
         ]
         self._adopt(members)
         return self
 
-    def _member(self, seed: int) -> CNNDirectionClassifier:
+    def _member(self, seed: int, k: int = 0) -> CNNDirectionClassifier:
+        """One network of the ensemble (its checkpoints in their own folder)."""
         member: CNNDirectionClassifier = clone(self).set_params(ensemble=1, seed=seed)
+        if self.checkpoint_dir is not None and self.ensemble > 1:
+            member.set_params(checkpoint_dir=Path(self.checkpoint_dir) / f"network{k}")
         return member
 
     def _adopt(self, members: list[CNNDirectionClassifier]) -> None:
