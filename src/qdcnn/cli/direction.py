@@ -121,6 +121,13 @@ EdgeFramesOpt = Annotated[
         "--standardise-frames both (six planes a frame).",
     ),
 ]
+EnsembleOpt = Annotated[
+    int,
+    typer.Option(
+        help="CNNs and hybrids: train K networks (seeds SEED .. SEED+K-1, 1-9) that decide by "
+        "majority vote (a tie: the earliest network's class).",
+    ),
+]
 FromOpt = Annotated[
     Path | None,
     typer.Option(
@@ -141,13 +148,17 @@ def training_options(
     balanced: bool = False,
     standardise_frames: bool = False,
     edge_frames: bool = False,
+    ensemble: int = 1,
     *,
     from_model: Path | None = None,
 ) -> TrainingOptions:
     from qdcnn.direction.methods import TrainingOptions
+    from qdcnn.models.ensemble import MAX_ENSEMBLE
 
     if threads is not None and threads < 1:
         raise ParameterError("threads", threads, "a positive integer")
+    if not 1 <= ensemble <= MAX_ENSEMBLE:
+        raise ParameterError("ensemble", ensemble, f"1 to {MAX_ENSEMBLE} networks")
     return TrainingOptions(
         epochs=epochs,
         weights=weights,
@@ -159,6 +170,7 @@ def training_options(
         balanced=balanced,
         standardise_frames=standardise_frames,
         edge_frames=edge_frames,
+        params={"ensemble": ensemble} if ensemble > 1 else {},
     )
 
 
@@ -187,8 +199,9 @@ def evaluate_cmd(
     context: ContextOpt = 1,
     transfer: TransferOpt = False,
     balanced: BalancedOpt = False,
-    standardise: StandardiseOpt = False,
+    std: StandardiseOpt = False,
     edge: EdgeFramesOpt = False,
+    ensemble: EnsembleOpt = 1,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
     marks: MarksOpt = "none",
@@ -224,7 +237,7 @@ def evaluate_cmd(
             gap,
             inner_folds,
             training_options(
-                epochs, weights, threads, progress, context, transfer, balanced, standardise, edge
+                epochs, weights, threads, progress, context, transfer, balanced, std, edge, ensemble
             ),
             use_cache=cache,
             scheduler=scheduler,
@@ -393,6 +406,7 @@ def train_direction_cmd(
     balanced: BalancedOpt = False,
     standardise_frames: StandardiseOpt = False,
     edge_frames: EdgeFramesOpt = False,
+    ensemble: EnsembleOpt = 1,
     from_model: FromOpt = None,
     steering_unit: SteeringUnitOpt = "auto",
     label_threshold: LabelThresholdOpt = None,
@@ -433,6 +447,7 @@ def train_direction_cmd(
                 from_model=from_model,
                 standardise_frames=standardise_frames,
                 edge_frames=edge_frames,
+                ensemble=ensemble,
             ),
         )
         result = train_direction(spec, CliReporter(False, quiet=quiet))

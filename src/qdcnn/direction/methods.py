@@ -508,8 +508,25 @@ def option_notes(methods: Sequence[DirectionMethod], options: TrainingOptions) -
         staged_note(methods, options),
         balanced_note(methods, options),
         standardise_note(methods, options),
+        ensemble_note(methods, options),
     )
     return [n for n in notes if n]
+
+
+def ensemble_note(methods: Sequence[DirectionMethod], options: TrainingOptions) -> str | None:
+    """What ``--ensemble K`` does to ``methods``: it applies to the CNNs and the hybrids
+    (their twins and ablations too); the others train as usual (a note says which). Where it
+    changes nothing it is refused."""
+    networks = int(options.params.get("ensemble", 1))
+    if networks <= 1:
+        return None
+    nouns = ("CNNs and hybrids", "a CNN or a hybrid")
+    return _applies_note(f"--ensemble {networks}", methods, ensemble_applies, nouns)
+
+
+def ensemble_applies(method: DirectionMethod) -> bool:
+    """Whether ``method`` trains networks (a CNN or a hybrid), so an ensemble of them."""
+    return method.kind == "cnn" or method.kind in HYBRID_KINDS
 
 
 def _applies_note(
