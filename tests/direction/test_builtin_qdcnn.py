@@ -90,7 +90,7 @@ def test_with_torch_the_qdcnn_model_decides_unless_lanes_are_asked_for(
     recordings = model.summary["builtin"]["training"]["recordings"]
     assert {"udacity-lake-track", "real-dashcam-sample"} <= set(recordings)
     assert name.startswith(
-        "built-in qdcnn-head, a majority vote of 3 networks (trained on udacity-lake-track, "
+        "built-in qdcnn-head, the mean of 3 networks (trained on udacity-lake-track, "
     )
     assert model.estimator.ensemble == 3 and len(model.estimator.members_) == 3
     assert name.endswith(f"; sha256 {QDCNN_SHA256[:12]})")

@@ -6,41 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from qdcnn.errors import InputError
-from qdcnn.models.ensemble import joined_arrays, split_arrays, vote
+from qdcnn.models.ensemble import joined_arrays, member_seed, split_arrays
 
 
-def test_the_vote_takes_the_majority_and_ties_go_to_the_earliest_run() -> None:
-    runs = np.array(
-        [
-            [0, 1, 2, 0, 2, 1],
-            [0, 2, 2, 1, 0, 1],
-            [1, 2, 0, 2, 1, 1],
-        ]
-    )
-    np.testing.assert_array_equal(vote(runs), [0, 2, 2, 0, 2, 1])
-    np.testing.assert_array_equal(vote(runs[:2]), runs[0])  # two runs: the first wins ties
-    np.testing.assert_array_equal(vote(runs[2]), runs[2])
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    st.integers(1, 7).flatmap(
-        lambda k: st.lists(st.lists(st.integers(0, 2), min_size=k, max_size=k), max_size=20)
-    )
-)
-def test_the_vote_equals_counting_frame_by_frame(frames: list[list[int]]) -> None:
-    if not frames:
-        return
-    runs = np.array(frames).T  # (K, N)
-    expected = []
-    for column in frames:
-        counts = np.bincount(column, minlength=3)
-        expected.append(next(c for c in column if counts[c] == counts.max()))
-    np.testing.assert_array_equal(vote(runs), expected)
+def test_the_networks_seeds_stay_clear_of_restarts_and_seeds() -> None:
+    assert [member_seed(3, k) for k in range(3)] == [3, 1003, 2003]
 
 
 def test_arrays_of_several_networks_split_back() -> None:
@@ -82,20 +54,23 @@ def _small(**kw: object) -> object:
 
 
 @torch_needed
-def test_each_member_is_the_run_of_its_seed_and_the_ensemble_votes(
+def test_each_network_is_the_run_of_its_seed_and_the_ensemble_averages_them(
     lines: tuple[np.ndarray, np.ndarray],
 ) -> None:
     x, y = lines
     ensemble = _small(ensemble=3).fit(x, y)  # type: ignore[attr-defined]
-    singles = [_small(seed=3 + k).fit(x, y) for k in range(3)]  # type: ignore[attr-defined]
+    singles = [_small(seed=member_seed(3, k)).fit(x, y) for k in range(3)]  # type: ignore[attr-defined]
     for member, single in zip(ensemble.members_, singles, strict=True):
         np.testing.assert_array_equal(member.predict_proba(x), single.predict_proba(x))
-    runs = np.stack([s.predict(x) for s in singles])
-    np.testing.assert_array_equal(ensemble.predict(x), vote(runs))
-    np.testing.assert_allclose(
-        ensemble.predict_proba(x), np.mean([s.predict_proba(x) for s in singles], axis=0)
-    )
-    assert ensemble.seed_ == 3 and [m.seed_ for m in ensemble.members_] == [3, 4, 5]
+    mean = np.mean([s.predict_proba(x) for s in singles], axis=0)
+    np.testing.assert_allclose(ensemble.predict_proba(x), mean)
+    np.testing.assert_array_equal(ensemble.predict(x), np.argmax(mean, axis=1))
+    labels, proba = ensemble.predict_with_proba(x)
+    np.testing.assert_array_equal(labels, np.argmax(proba, axis=1))
+    assert ensemble.seed_ == 3 and [m.seed_ for m in ensemble.members_] == [3, 1003, 2003]
+    one = ensemble.set_params(ensemble=1).fit(x, y)  # a refit as one network: no old networks
+    assert not hasattr(one, "members_")
+    np.testing.assert_array_equal(one.predict_proba(x), singles[0].predict_proba(x))
 
 
 @torch_needed
@@ -124,7 +99,8 @@ def test_an_ensemble_model_file_round_trips_and_bad_ones_are_named(
     loaded = DirectionModel.load(path)
     np.testing.assert_array_equal(loaded.predict(x), clf.predict(x))
     np.testing.assert_array_equal(loaded.predict_proba(x), clf.predict_proba(x))
-    assert len(loaded.estimator.members_) == 2
+    assert [m.seed_ for m in loaded.estimator.members_] == [3, 1003]
+    assert [m.seed for m in loaded.estimator.members_] == [3, 1003]
     with pytest.raises(ParameterError, match="ensemble"):
         clf.save(tmp_path / "network.safetensors")
     header, arrays = load_model(path, KIND, {FORMAT_VERSION})
@@ -135,3 +111,8 @@ def test_an_ensemble_model_file_round_trips_and_bad_ones_are_named(
     with pytest.raises(InputError) as err:
         DirectionModel.load(bad)
     assert str(err.value) == f"{bad}: holds 2 networks, its settings say ensemble=3"
+    meta["params"] = {**meta["params"], "ensemble": 1}
+    save_model(bad, KIND, FORMAT_VERSION, meta, arrays)
+    with pytest.raises(InputError) as err:
+        DirectionModel.load(bad)
+    assert str(err.value) == f"{bad}: holds 2 networks, its settings say ensemble=1"

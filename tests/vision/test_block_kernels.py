@@ -136,25 +136,47 @@ def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) 
 def test_a_frame_without_a_certified_fixed_point_is_calibrated_with_numpy(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Where the fused kernel finds no certified fixed point (NaN: rare, so simulated
-    here), the detector falls back to the NumPy calibration and its reference result."""
+    """Where the kernels find no certified fixed point (NaN: rare, so simulated here), the
+    detector calibrates with NumPy and gives the NumPy path's result."""
     from types import SimpleNamespace
 
     from qdcnn.experiments.shadow_bench import bench_frames
     from qdcnn.vision import shadows
+    from qdcnn.vision.compiled import KERNELS_VARIABLE
 
     def no_fixed_point(grey: np.ndarray, *args: object) -> tuple[object, ...]:
         sums, blocks, *_ = kernels.detect_calibrated(grey, *args)
         empty = np.empty((0, 0), np.uint8)
         return sums, blocks, np.nan, np.empty(0), empty, empty.view(np.bool_)
 
+    def no_calibration(*args: object) -> tuple[object, ...]:
+        sums, blocks, _ = kernels.calibrate_blocks(*args)
+        return sums, blocks, np.nan
+
+    calls: list[float] = []
     cfg = ShadowConfig(shots=None)
     image = bench_frames(320, 160, 1, seed=5)[0]
-    before = shadows.detect_shadows_uu(image, cfg)
+    with monkeypatch.context() as numpy_path:
+        numpy_path.setenv(KERNELS_VARIABLE, "numpy")
+        reference = shadows.detect_shadows_uu(image, cfg)
     stub = SimpleNamespace(**vars(kernels))
-    stub.detect_calibrated = no_fixed_point
+    stub.detect_calibrated, stub.calibrate_blocks = no_fixed_point, no_calibration
     monkeypatch.setattr(shadows, "compiled_kernels", lambda: stub)
-    after = shadows.detect_shadows_uu(image, cfg)
-    assert after.centroid == pytest.approx(before.centroid, rel=1e-12, abs=1e-12)
-    np.testing.assert_array_equal(after.mask, before.mask)
-    assert after.centroid_source == "calibrated"
+    monkeypatch.setattr(shadows, "_calibrated_value", _counting(shadows, calls))
+    ours = shadows.detect_shadows_uu(image, cfg)
+    assert len(calls) == 1 and ours.centroid == reference.centroid
+    np.testing.assert_array_equal(ours.mask, reference.mask)
+    assert ours.centroid_source == "calibrated"
+
+
+def _counting(shadows: object, calls: list[float]) -> object:
+    """``shadows._calibrated_value`` that records the NumPy calibrations it runs."""
+    original = shadows._calibrated_value  # type: ignore[attr-defined]
+    calibrate = shadows.calibrate_centroid  # type: ignore[attr-defined]
+
+    def wrapped(theta: float, blocks: np.ndarray, cfg: ShadowConfig) -> float:
+        if np.isnan(theta):
+            calls.append(calibrate(blocks, cfg.feature, cfg))
+        return float(original(theta, blocks, cfg))
+
+    return wrapped

@@ -43,3 +43,30 @@ def test_another_missing_module_is_not_hidden(monkeypatch: pytest.MonkeyPatch) -
             compiled("no_such_kernels")
     finally:
         compiled_module._imported.cache_clear()
+
+
+def test_numba_refusing_this_numpy_gives_the_numpy_paths(monkeypatch: pytest.MonkeyPatch) -> None:
+    real_import = builtins.__import__
+
+    def old_numpy(name: str, *args: Any, **kwargs: Any) -> Any:
+        if name == "numba":
+            raise ImportError("Numba needs NumPy 2.2 or less")  # as numba/__init__ says it
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.delenv(KERNELS_VARIABLE, raising=False)
+    monkeypatch.setattr(builtins, "__import__", old_numpy)
+    monkeypatch.delitem(__import__("sys").modules, "qdcnn.vision.removal_kernels", raising=False)
+    compiled_module._imported.cache_clear()
+    try:
+        assert compiled("removal_kernels") is None
+    finally:
+        compiled_module._imported.cache_clear()
+
+
+def test_another_setting_is_named_in_the_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    from qdcnn.errors import ParameterError
+
+    monkeypatch.setenv(KERNELS_VARIABLE, "off")
+    with pytest.raises(ParameterError) as err:
+        compiled("block_kernels")
+    assert str(err.value) == "QDCNN_KERNELS='off' is invalid: 'numba' or 'numpy'"

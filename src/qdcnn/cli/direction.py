@@ -124,8 +124,8 @@ EdgeFramesOpt = Annotated[
 EnsembleOpt = Annotated[
     int,
     typer.Option(
-        help="CNNs and hybrids: train K networks (seeds SEED .. SEED+K-1, 1-9) that decide by "
-        "majority vote (a tie: the earliest network's class).",
+        help="CNNs and hybrids: train K networks (1-9; seeds SEED, SEED+1000, ...) and decide "
+        "by the mean of their class probabilities.",
     ),
 ]
 FromOpt = Annotated[

@@ -239,8 +239,8 @@ def describe_default_model(model: DirectionModel) -> str:
     if isinstance(builtin, dict):
         names = ", ".join(builtin.get("training", {}).get("recordings", {})) or model.trained_on
         networks = int(getattr(model.estimator, "ensemble", 1))
-        vote = f", a majority vote of {networks} networks" if networks > 1 else ""
-        return f"built-in {model.method}{vote} (trained on {names}; sha256 {QDCNN_SHA256[:12]})"
+        mean = f", the mean of {networks} networks" if networks > 1 else ""
+        return f"built-in {model.method}{mean} (trained on {names}; sha256 {QDCNN_SHA256[:12]})"
     cv = model.summary.get("cross_validation", {})
     score = (
         f"; {cv['folds']}-fold contiguous CV accuracy {cv['accuracy']:.3f} "

@@ -1,9 +1,10 @@
 """Several networks of one recipe deciding together: a seed ensemble.
 
 A :class:`~qdcnn.models.training.CNNDirectionClassifier` with ``ensemble=K`` trains K
-networks of its recipe with seeds ``seed .. seed + K - 1`` (the runs that ``qdcnn
-evaluate --seeds K`` scores one by one) and decides by majority vote (:func:`vote`); its
-probabilities are the networks' mean. A model file keeps the first network's arrays
+networks of its recipe, network ``k`` with seed :func:`member_seed` (``seed + 1000 k``),
+each exactly as a one-network classifier of that seed, and decides by the mean of their
+class probabilities (a soft vote: the decision is the mean's most probable class, so it
+agrees with the probabilities it reports). A model file keeps the first network's arrays
 under their own names (so ``--from`` reads its trunk) and network ``k``'s under
 ``member{k}.`` (:func:`joined_arrays`, :func:`split_arrays`).
 """
@@ -13,30 +14,21 @@ from __future__ import annotations
 import os
 from typing import Any
 
-import numpy as np
 from numpy.typing import NDArray
 
 from qdcnn.errors import InputError
 
 #: The most networks an ensemble may hold.
 MAX_ENSEMBLE = 9
+#: How far apart the networks' seeds are (:func:`member_seed`).
+MEMBER_SEED_STRIDE = 1000
 
 
-def vote(runs: NDArray[np.int64], n_classes: int = 3) -> NDArray[np.int64]:
-    """Each frame's class given by most of ``runs`` ``(K, N)``; a tie goes to the
-    earliest run's class among the tied ones (with three runs and three classes: the
-    first run's)."""
-    runs = np.atleast_2d(np.asarray(runs, dtype=np.int64))
-    frames = np.arange(runs.shape[1])
-    counts = np.zeros((runs.shape[1], n_classes), dtype=np.int64)
-    for run in runs:
-        np.add.at(counts, (frames, run), 1)
-    most = counts.max(axis=1)
-    out = np.full(runs.shape[1], -1, dtype=np.int64)
-    for run in runs:
-        pick = (out < 0) & (counts[frames, run] == most)
-        out[pick] = run[pick]
-    return out
+def member_seed(seed: int, k: int) -> int:
+    """The seed of network ``k`` of an ensemble seeded ``seed``: a run that collapses starts
+    again with the next seeds (``restarts``) and ``--seeds`` retrains with ``seed + 1``, ...,
+    so the networks' seeds are :data:`MEMBER_SEED_STRIDE` apart, where neither reaches."""
+    return seed + k * MEMBER_SEED_STRIDE
 
 
 def _prefix(k: int) -> str:

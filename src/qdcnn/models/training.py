@@ -33,7 +33,7 @@ from qdcnn._optional import require
 from qdcnn._validation import check_bool, check_choice, check_input_shape, check_int, has_shape
 from qdcnn.data.labels import DIRECTIONS, LEFT, RIGHT, STRAIGHT
 from qdcnn.errors import InputError, ParameterError
-from qdcnn.models.ensemble import MAX_ENSEMBLE, joined_arrays, split_arrays, vote
+from qdcnn.models.ensemble import MAX_ENSEMBLE, joined_arrays, member_seed, split_arrays
 from qdcnn.models.networks import (
     NETWORKS,
     NetworkEntry,
@@ -338,8 +338,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         (:func:`qdcnn.models.networks.build_network`), such as ``{"dropout": 0.5}``
         for PilotNet; plain JSON values, kept in saved files.
     ensemble : int
-        Networks trained, with seeds ``seed .. seed + ensemble - 1``, deciding by
-        majority vote (:mod:`qdcnn.models.ensemble`); 1: one network.
+        Networks trained, network ``k`` with seed ``seed + 1000 k`` exactly as a
+        one-network classifier of that seed; the probabilities are their mean and the
+        decision its most probable class (:mod:`qdcnn.models.ensemble`); 1: one network.
 
     Attributes
     ----------
@@ -360,8 +361,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     classes_ : ndarray
         ``[0, 1, 2]``.
     members_ : list of CNNDirectionClassifier
-        With ``ensemble > 1``: the one-network classifiers that vote (the attributes
-        above are the first one's).
+        With ``ensemble > 1``: the one-network classifiers averaged (the attributes above
+        are the first one's).
 
     Examples
     --------
@@ -541,6 +542,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     ) -> None:
         from qdcnn.models.trainer import place, resolve_device
 
+        self.__dict__.pop("members_", None)  # a refit or a loaded network: no old networks
         self.device_ = resolve_device(self.device)
         self.model_ = place(network, self.device_).eval()
         self.input_spec_ = spec
@@ -635,21 +637,22 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
     ) -> CNNDirectionClassifier:
         """The ensemble: one network per seed, each trained as ``ensemble=1`` would."""
         members = [
-            self._member(self.seed + k, k).fit(images, labels, extra_views=extra_views)
+            self._member(k).fit(images, labels, extra_views=extra_views)
             for k in range(self.ensemble)
         ]
         self._adopt(members)
         return self
 
-    def _member(self, seed: int, k: int = 0) -> CNNDirectionClassifier:
-        """One network of the ensemble (its checkpoints in their own folder)."""
+    def _member(self, k: int) -> CNNDirectionClassifier:
+        """Network ``k`` of the ensemble: its seed, its checkpoints in their own folder."""
+        seed = member_seed(self.seed, k)
         member: CNNDirectionClassifier = clone(self).set_params(ensemble=1, seed=seed)
         if self.checkpoint_dir is not None and self.ensemble > 1:
             member.set_params(checkpoint_dir=Path(self.checkpoint_dir) / f"network{k}")
         return member
 
     def _adopt(self, members: list[CNNDirectionClassifier]) -> None:
-        """Take the first member's fitted attributes and keep all members for the vote."""
+        """Take the first member's fitted attributes and keep all members to average."""
         first = members[0]
         self._set_fitted(
             first.model_,
@@ -661,8 +664,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         )
         self.members_ = members
 
-    def _voters(self) -> list[CNNDirectionClassifier]:
-        """The members of a fitted ensemble; empty for one network."""
+    def _averaged(self) -> list[CNNDirectionClassifier]:
+        """The networks (one-network classifiers) a fitted ensemble averages; empty for one."""
         members: list[CNNDirectionClassifier] = getattr(self, "members_", [])
         return members if len(members) > 1 else []
 
@@ -795,8 +798,8 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         needs a network with a quantum layer (the hybrids).
         """
         check_is_fitted(self, "model_")
-        if self._voters():
-            return np.mean([m.predict_proba(images, noise) for m in self._voters()], axis=0)
+        if self._averaged():
+            return np.mean([m.predict_proba(images, noise) for m in self._averaged()], axis=0)
         if noise is not None:
             previous = _as_noise("noise", self.noise)
             _set_quantum_noise(self.model_, _as_noise("noise", noise), "noise")
@@ -837,19 +840,15 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> NDArray[np.int64]:
         """Direction per frame: 0 = left, 1 = straight, 2 = right (``noise``: see
-        :meth:`predict_proba`); an ensemble's majority vote."""
+        :meth:`predict_proba`), the most probable class."""
         return self.predict_with_proba(images, noise)[0]
 
     def predict_with_proba(
         self, images: ArrayLike | Sequence[NDArray[np.uint8]], noise: GateNoise | str | None = None
     ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """:meth:`predict` and :meth:`predict_proba` from one pass of each network."""
-        voters = self._voters()
-        if not voters:
-            proba = self.predict_proba(images, noise)
-            return np.argmax(proba, axis=1).astype(np.int64), proba
-        each = [m.predict_proba(images, noise) for m in voters]
-        return vote(np.stack([np.argmax(p, axis=1) for p in each])), np.mean(each, axis=0)
+        proba = self.predict_proba(images, noise)
+        return np.argmax(proba, axis=1).astype(np.int64), proba
 
     def score(
         self,
@@ -924,7 +923,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """
         from qdcnn.models.persistence import save_network
 
-        if self._voters():
+        if self._averaged():
             raise ParameterError(
                 "ensemble",
                 self.ensemble,
@@ -936,11 +935,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """Header fields and weight arrays for a direction model file (:mod:`qdcnn.persistence`)."""
         from qdcnn.models.persistence import state_arrays
 
-        voters = self._voters()
-        if not voters:
+        members = self._averaged()
+        if not members:
             return self._fitted_meta(), state_arrays(self.model_)
-        meta = {**self._fitted_meta(), "members": [m._fitted_meta() for m in voters[1:]]}
-        return meta, joined_arrays([state_arrays(m.model_) for m in voters])
+        meta = {**self._fitted_meta(), "members": [m._fitted_meta() for m in members[1:]]}
+        return meta, joined_arrays([state_arrays(m.model_) for m in members])
 
     def _fitted_meta(self) -> dict[str, Any]:
         """The header of a model file: settings, input spec, history and best epoch."""
@@ -962,11 +961,11 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         if not isinstance(meta, dict) or meta.get("architecture") != self.arch:
             raise InputError(source, f"the weights are not those of a {self.arch!r} network")
         self._checked()
+        metas = [meta, *_member_metas(meta, self.ensemble, source)]
         if self.ensemble == 1:
             self._restore(meta, arrays, source)
             return
-        metas = [meta, *_member_metas(meta, self.ensemble, source)]
-        members = [self._member(self.seed) for _ in metas]
+        members = [self._member(k) for k in range(len(metas))]
         for member, part, arrays_of in zip(
             members, metas, split_arrays(arrays, self.ensemble, source), strict=True
         ):
@@ -1024,10 +1023,11 @@ def _member_metas(
     meta: dict[str, Any], networks: int, source: str | os.PathLike[str]
 ) -> list[dict[str, Any]]:
     """The headers of an ensemble file's networks after the first."""
-    members = meta.get("members")
+    members = meta.get("members", [])
     if not isinstance(members, list) or len(members) != networks - 1:
         held = len(members) + 1 if isinstance(members, list) else 1
-        raise InputError(source, f"holds {held} networks, its settings say ensemble={networks}")
+        noun = "network" if held == 1 else "networks"
+        raise InputError(source, f"holds {held} {noun}, its settings say ensemble={networks}")
     if not all(isinstance(m, dict) for m in members):
         raise InputError(source, "header field 'members' is not a list of objects")
     return members

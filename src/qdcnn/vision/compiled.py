@@ -13,23 +13,32 @@ import os
 from functools import cache
 from types import ModuleType
 
+from qdcnn.errors import ParameterError
+
 #: ``QDCNN_KERNELS=numpy`` runs the NumPy paths instead of the compiled kernels.
 KERNELS_VARIABLE = "QDCNN_KERNELS"
 
 
 def compiled(module: str) -> ModuleType | None:
-    """The kernel module ``qdcnn.vision.<module>``, or None when Numba is missing or
-    ``QDCNN_KERNELS=numpy`` asks for the NumPy paths."""
-    if os.environ.get(KERNELS_VARIABLE, "numba") == "numpy":
-        return None
-    return _imported(module)
+    """The kernel module ``qdcnn.vision.<module>``, or None when Numba is missing (or
+    does not import beside this NumPy) or ``QDCNN_KERNELS=numpy`` asks for the NumPy paths.
+
+    Raises
+    ------
+    ParameterError
+        ``QDCNN_KERNELS`` is set to something else than ``numba`` or ``numpy``.
+    """
+    choice = os.environ.get(KERNELS_VARIABLE, "numba")
+    if choice not in ("numba", "numpy"):
+        raise ParameterError(KERNELS_VARIABLE, choice, "'numba' or 'numpy'")
+    return None if choice == "numpy" else _imported(module)
 
 
 @cache
 def _imported(module: str) -> ModuleType | None:
     try:
         return importlib.import_module(f"qdcnn.vision.{module}")
-    except ModuleNotFoundError as error:
-        if error.name != "numba":
+    except ImportError as error:  # Numba missing, or refusing this NumPy: the NumPy paths
+        if error.name is not None and error.name.partition(".")[0] != "numba":
             raise
         return None

@@ -4,7 +4,7 @@ Before a region's shadow pixels are filled, its pixels are split into shadow and
 ones and the lit ones' levels are counted per channel (their medians are the fill). The
 NumPy path builds two masks and runs one masked OpenCV histogram per channel, four
 passes over the region's rows; :func:`lit_levels` does it in one. Counts are integers:
-the results are the NumPy path's exactly (``tests/vision/test_removal.py``).
+the results are the NumPy path's exactly (``tests/vision/test_removal_kernels.py``).
 """
 
 from __future__ import annotations

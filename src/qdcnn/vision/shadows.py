@@ -20,6 +20,7 @@ default). A block is shadow when every feature's one-qubit UU-dagger test passes
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -686,7 +687,7 @@ def _detect_compiled(
     few units in the last place), in one or two kernel calls."""
     rows, cols, area = _pixel_edges(geometry, cfg.downsample)
     if cfg.centroid is None and model is None and cfg.shots is None and cfg.median_ksize**2 <= 255:
-        fused = _detect_calibrated(kernels, grey, geometry, lookup, cfg)
+        fused = _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
         if fused is not None:
             return fused
     if cfg.centroid is None and model is None:
@@ -713,6 +714,7 @@ def _detect_compiled(
 def _detect_calibrated(
     kernels: ModuleType,
     grey: NDArray[Any],
+    edges: tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]],
     geometry: BlockGrid,
     lookup: StateLookup,
     cfg: ShadowConfig,
@@ -722,7 +724,7 @@ def _detect_calibrated(
     answer (the caller then calibrates with NumPy)."""
     _, blocks, centroid, scores, decided, mask = kernels.detect_calibrated(
         grey,
-        _pixel_edges(geometry, cfg.downsample),
+        edges,
         _half_angle_tangents(),
         _calibration_settings(cfg),
         (lookup.offsets, lookup.cos_half, lookup.sin_half),
@@ -731,7 +733,7 @@ def _detect_calibrated(
         geometry.col_of,
         cfg.median_ksize,
     )
-    if centroid != centroid:
+    if math.isnan(centroid):
         return None
     return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
 
