@@ -17,22 +17,28 @@ def test_numpy_selects_no_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     assert compiled("removal_kernels") is None
 
 
-def test_a_missing_numba_gives_the_numpy_paths(monkeypatch: pytest.MonkeyPatch) -> None:
+def _kernels_when_numba_raises(monkeypatch: pytest.MonkeyPatch, error: ImportError) -> object:
+    """``compiled("removal_kernels")`` when ``import numba`` raises ``error``."""
     real_import = builtins.__import__
 
-    def no_numba(name: str, *args: Any, **kwargs: Any) -> Any:
+    def failing(name: str, *args: Any, **kwargs: Any) -> Any:
         if name == "numba" or name.startswith("numba."):
-            raise ModuleNotFoundError("No module named 'numba'", name="numba")
+            raise error
         return real_import(name, *args, **kwargs)
 
     monkeypatch.delenv(KERNELS_VARIABLE, raising=False)
-    monkeypatch.setattr(builtins, "__import__", no_numba)
+    monkeypatch.setattr(builtins, "__import__", failing)
     monkeypatch.delitem(__import__("sys").modules, "qdcnn.vision.removal_kernels", raising=False)
     compiled_module._imported.cache_clear()
     try:
-        assert compiled("removal_kernels") is None
+        return compiled("removal_kernels")
     finally:
         compiled_module._imported.cache_clear()
+
+
+def test_a_missing_numba_gives_the_numpy_paths(monkeypatch: pytest.MonkeyPatch) -> None:
+    missing = ModuleNotFoundError("No module named 'numba'", name="numba")
+    assert _kernels_when_numba_raises(monkeypatch, missing) is None
 
 
 def test_another_missing_module_is_not_hidden(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -46,21 +52,8 @@ def test_another_missing_module_is_not_hidden(monkeypatch: pytest.MonkeyPatch) -
 
 
 def test_numba_refusing_this_numpy_gives_the_numpy_paths(monkeypatch: pytest.MonkeyPatch) -> None:
-    real_import = builtins.__import__
-
-    def old_numpy(name: str, *args: Any, **kwargs: Any) -> Any:
-        if name == "numba":
-            raise ImportError("Numba needs NumPy 2.2 or less")  # as numba/__init__ says it
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.delenv(KERNELS_VARIABLE, raising=False)
-    monkeypatch.setattr(builtins, "__import__", old_numpy)
-    monkeypatch.delitem(__import__("sys").modules, "qdcnn.vision.removal_kernels", raising=False)
-    compiled_module._imported.cache_clear()
-    try:
-        assert compiled("removal_kernels") is None
-    finally:
-        compiled_module._imported.cache_clear()
+    refusal = ImportError("Numba needs NumPy 2.2 or less")  # as numba/__init__ says it
+    assert _kernels_when_numba_raises(monkeypatch, refusal) is None
 
 
 def test_another_setting_is_named_in_the_error(monkeypatch: pytest.MonkeyPatch) -> None:
