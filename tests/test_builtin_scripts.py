@@ -69,7 +69,7 @@ def test_paired_difference_of_files_scored_with_several_seeds(
         ),
         (["--ensemble", "0", "--results", "x.json"], "--ensemble 0: give 1 to 9 networks"),
         (
-            ["--ensemble", "1"],
+            ["--ensemble", "3"],
             "a recipe variant: give --model and --results (not the shipped files)",
         ),
     ],
@@ -96,8 +96,7 @@ def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
     _, train = scripts
     monkeypatch.setattr(train, "VARIANT", {"standardise_frames": False, "edge_frames": True})
     options = train.training_options()
-    assert options.edge_frames and not options.standardise_frames
-    assert options.params == {"ensemble": train.ENSEMBLE}
+    assert options.edge_frames and not options.standardise_frames and options.params == {}
     monkeypatch.setattr(train, "VARIANT", {"edge_frames": True})  # --with-edges
     options = train.training_options()
     assert options.edge_frames and options.standardise_frames
@@ -106,14 +105,14 @@ def test_the_edge_variant_trains_with_edge_frames_instead_of_standardised_ones(
     assert options.standardise_frames and not options.edge_frames
 
 
-def test_the_recipe_is_an_ensemble_and_one_network_is_a_variant(
+def test_the_recipe_is_one_network_and_an_ensemble_is_a_variant(
     scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     _, train = scripts
     monkeypatch.setattr(train, "VARIANT", {})
-    assert train.training_options().params == {"ensemble": train.ENSEMBLE} and train.ENSEMBLE == 3
-    monkeypatch.setattr(train, "VARIANT", {"ensemble": 1, "max_shift": 0.1})
-    assert train.training_options().params == {"max_shift": 0.1}
+    assert train.training_options().params == {} and train.ENSEMBLE == 1
+    monkeypatch.setattr(train, "VARIANT", {"ensemble": 3, "max_shift": 0.1})
+    assert train.training_options().params == {"max_shift": 0.1, "ensemble": 3}
 
 
 def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
