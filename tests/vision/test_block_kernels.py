@@ -149,10 +149,6 @@ def test_a_frame_without_a_certified_fixed_point_is_calibrated_with_numpy(
         empty = np.empty((0, 0), np.uint8)
         return sums, blocks, np.nan, np.empty(0), empty, empty.view(np.bool_)
 
-    def no_calibration(*args: object) -> tuple[object, ...]:
-        sums, blocks, _ = kernels.calibrate_blocks(*args)
-        return sums, blocks, np.nan
-
     calls: list[float] = []
     cfg = ShadowConfig(shots=None)
     image = bench_frames(320, 160, 1, seed=5)[0]
@@ -160,7 +156,7 @@ def test_a_frame_without_a_certified_fixed_point_is_calibrated_with_numpy(
         numpy_path.setenv(KERNELS_VARIABLE, "numpy")
         reference = shadows.detect_shadows_uu(image, cfg)
     stub = SimpleNamespace(**vars(kernels))
-    stub.detect_calibrated, stub.calibrate_blocks = no_fixed_point, no_calibration
+    stub.detect_calibrated = no_fixed_point
     monkeypatch.setattr(shadows, "compiled_kernels", lambda: stub)
     monkeypatch.setattr(shadows, "_calibrated_value", _counting(shadows, calls))
     ours = shadows.detect_shadows_uu(image, cfg)

@@ -798,8 +798,9 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         needs a network with a quantum layer (the hybrids).
         """
         check_is_fitted(self, "model_")
-        if self._averaged():
-            return np.mean([m.predict_proba(images, noise) for m in self._averaged()], axis=0)
+        members = self._averaged()
+        if members:
+            return np.mean([m.predict_proba(images, noise) for m in members], axis=0)
         if noise is not None:
             previous = _as_noise("noise", self.noise)
             _set_quantum_noise(self.model_, _as_noise("noise", noise), "noise")

@@ -687,9 +687,7 @@ def _detect_compiled(
     few units in the last place), in one or two kernel calls."""
     rows, cols, area = _pixel_edges(geometry, cfg.downsample)
     if cfg.centroid is None and model is None and cfg.shots is None and cfg.median_ksize**2 <= 255:
-        fused = _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
-        if fused is not None:
-            return fused
+        return _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
     if cfg.centroid is None and model is None:
         sums, blocks, theta = kernels.calibrate_blocks(
             grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
@@ -718,11 +716,12 @@ def _detect_calibrated(
     geometry: BlockGrid,
     lookup: StateLookup,
     cfg: ShadowConfig,
-) -> ShadowDetection | None:
+) -> ShadowDetection:
     """The exact detection with the centroid calibrated on the frame, in one kernel call
-    (:func:`block_kernels.detect_calibrated`); None where the kernel's fixed point has no
-    answer (the caller then calibrates with NumPy)."""
-    _, blocks, centroid, scores, decided, mask = kernels.detect_calibrated(
+    (:func:`block_kernels.detect_calibrated`). Where the kernel's fixed point has no
+    answer, its block sums are calibrated with NumPy (:func:`_calibrated_value`) and
+    decided as a given centroid's."""
+    sums, blocks, centroid, scores, decided, mask = kernels.detect_calibrated(
         grey,
         edges,
         _half_angle_tangents(),
@@ -734,7 +733,10 @@ def _detect_calibrated(
         cfg.median_ksize,
     )
     if math.isnan(centroid):
-        return None
+        centroid = _calibrated_value(centroid, blocks, cfg)
+        scores, decided, mask = _compiled_decisions(
+            kernels, lookup, sums, centroid, cfg, None, geometry
+        )
     return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
 
 
