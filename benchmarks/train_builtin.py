@@ -64,6 +64,9 @@ a stopped run keeps what finished. Then put the printed SHA-256 into
         # frames not standardised (the recipe before 5cc9212); --max-shift F: shifted sideways;
         # --edge-frames: the networks see each frame's Sobel edges only; --with-edges: the
         # standardised frame and its edges (six planes)
+    python benchmarks/train_builtin.py --tta --model /tmp/tta.safetensors --results /tmp/tta.json
+        # each frame decided by the mean of its and its mirror image's class probabilities
+        # (left and right swapped): the networks are those of the recipe
     python benchmarks/train_builtin.py --no-final --seeds 3 --leave-out udacity-lake-track \
         --results /tmp/seeds.json
         # only the left-out scores, each pooled over 3 training seeds (0, 1, 2)
@@ -453,6 +456,11 @@ def _parser() -> argparse.ArgumentParser:
         help=f"networks averaged (seeds 0, 1000, ...); the recipe: {ENSEMBLE}; more: a variant",
     )
     parser.add_argument(
+        "--tta",
+        action="store_true",
+        help="the variant that averages each frame's and its mirror image's probabilities",
+    )
+    parser.add_argument(
         "--no-final",
         action="store_true",
         help="score the left-out recordings only: no final training, no model file",
@@ -466,7 +474,7 @@ def main() -> None:
     parser = _parser()
     args = parser.parse_args()
     paths = (args.model.resolve(), args.results.resolve())
-    for option in ("colour_augment", "max_shift"):
+    for option in ("colour_augment", "max_shift", "tta"):
         if getattr(args, option):
             VARIANT[option] = getattr(args, option)
     if args.skip_final and args.no_final:

@@ -72,6 +72,7 @@ def test_paired_difference_of_files_scored_with_several_seeds(
             ["--ensemble", "3"],
             "a recipe variant: give --model and --results (not the shipped files)",
         ),
+        (["--tta"], "a recipe variant: give --model and --results (not the shipped files)"),
     ],
 )
 def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
@@ -115,6 +116,21 @@ def test_the_recipe_is_one_network_and_an_ensemble_is_a_variant(
     assert train.training_options().params == {"max_shift": 0.1, "ensemble": 3}
 
 
+def test_the_mirror_averaged_variant_reaches_the_estimator(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    pytest.importorskip("torch")
+    _, train = scripts
+    argv = ["--tta", "--no-final", "--results", str(tmp_path / "r.json")]
+    monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
+    monkeypatch.setattr(train, "VARIANT", {})
+    monkeypatch.setattr(train, "SEEDS", train.SEEDS)
+    monkeypatch.setattr(train, "load_sets", _past_the_checks)
+    with pytest.raises(RuntimeError, match="past the argument checks"):
+        train.main()
+    assert train.training_options().params == {"tta": True}
+
+
 def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
     scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
@@ -124,11 +140,11 @@ def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
     monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
     monkeypatch.setattr(train, "VARIANT", {})
     monkeypatch.setattr(train, "SEEDS", train.SEEDS)
-
-    def stop(_root: Path) -> None:
-        raise RuntimeError("past the argument checks")
-
-    monkeypatch.setattr(train, "load_sets", stop)
+    monkeypatch.setattr(train, "load_sets", _past_the_checks)
     with pytest.raises(RuntimeError, match="past the argument checks"):
         train.main()
     assert train.VARIANT == {"standardise_frames": False, "edge_frames": True}
+
+
+def _past_the_checks(_root: Path) -> None:
+    raise RuntimeError("past the argument checks")
