@@ -66,6 +66,8 @@ def bench(sizes: list[tuple[int, int]], passes: int, frames: int) -> dict[str, A
         images = bench_frames(w, h, frames)
         blocks = [shadows.detect_shadows_uu(im, cfg).block_values for im in images]
         calls = [_calls(b) for b in blocks]
+        for call in calls:  # warm-up: the kernel loaded (or compiled) before any turn
+            call["kernel"](), call["numpy"]()
         times: dict[str, list[float]] = {"kernel": [], "numpy": []}
         for turn in range(2 * passes):
             name = ("kernel", "numpy")[turn % 2 if (turn // 2) % 2 == 0 else 1 - turn % 2]

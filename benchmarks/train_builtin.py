@@ -199,7 +199,7 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
 
 
 #: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--edge-frames``,
-#: ``--with-edges``, ``--max-shift``); empty: the recipe.
+#: ``--with-edges``, ``--max-shift``, ``--ensemble``, ``--tta``); empty: the recipe.
 VARIANT: dict[str, Any] = {}
 
 
