@@ -16,18 +16,12 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
-import json
-import platform
 import statistics
 import time
 from collections.abc import Callable
 from typing import Any
 
-
-def _size(text: str) -> tuple[int, int]:
-    w, _, h = text.partition("x")
-    return int(w), int(h)
+from in_turns import main, measured, size_row, turn_name
 
 
 def _per_call_us(fn: Callable[[], object], calls: int) -> float:
@@ -70,48 +64,22 @@ def bench(sizes: list[tuple[int, int]], passes: int, frames: int) -> dict[str, A
             call["kernel"](), call["numpy"]()
         times: dict[str, list[float]] = {"kernel": [], "numpy": []}
         for turn in range(2 * passes):
-            name = ("kernel", "numpy")[turn % 2 if (turn // 2) % 2 == 0 else 1 - turn % 2]
+            name = turn_name(turn, ("kernel", "numpy"))
             repeat = 2000 if name == "kernel" else 100
             times[name].append(statistics.mean(_per_call_us(c[name], repeat) for c in calls))
-        medians = {name: statistics.median(t) for name, t in times.items()}
-        rows.append(
-            {
-                "size": [w, h],
-                "blocks": int(blocks[0].size),
-                "us_per_frame": medians,
-                "passes": {name: [round(t, 2) for t in ts] for name, ts in times.items()},
-                "numpy_over_kernel": medians["numpy"] / medians["kernel"],
-            }
-        )
-    return {
-        "kind": "measured",
-        "what": "per-image centroid calibration of the block means: kernel vs NumPy reference",
-        "frames": frames,
-        "one_core": core is not None,
-        "machine": {"python": platform.python_version()},
-        "rows": rows,
-    }
+        rows.append(size_row((w, h), times, "us_per_frame", 2, blocks=int(blocks[0].size)))
+    what = "per-image centroid calibration of the block means: kernel vs NumPy reference"
+    return measured(what, frames, core is not None, rows)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument("--json", action="store_true")
-    parser.add_argument("--passes", type=int, default=7)
-    parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--sizes", default="320x160,1280x720")
-    args = parser.parse_args()
-    result = bench([_size(s) for s in args.sizes.split(",")], args.passes, args.frames)
-    if args.json:
-        print(json.dumps(result))
-        return
-    for row in result["rows"]:
-        w, h = row["size"]
-        us = row["us_per_frame"]
-        print(
-            f"{w}x{h} ({row['blocks']} blocks): kernel {us['kernel']:.2f} us, "
-            f"NumPy {us['numpy']:.1f} us a frame ({row['numpy_over_kernel']:.1f}x)"
-        )
+def _line(row: dict[str, Any]) -> str:
+    w, h = row["size"]
+    us = row["us_per_frame"]
+    return (
+        f"{w}x{h} ({row['blocks']} blocks): kernel {us['kernel']:.2f} us, "
+        f"NumPy {us['numpy']:.1f} us a frame ({row['numpy_over_kernel']:.1f}x)"
+    )
 
 
 if __name__ == "__main__":
-    main()
+    main(__doc__, bench, (7, 5, "320x160,1280x720"), _line)

@@ -16,18 +16,10 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
-import json
-import platform
-import statistics
-import sys
 from dataclasses import replace
 from typing import Any
 
-
-def _size(text: str) -> tuple[int, int]:
-    w, _, h = text.partition("x")
-    return int(w), int(h)
+from in_turns import main, measured, size_row, turn_name
 
 
 def bench(sizes: list[tuple[int, int]], passes: int, frames: int) -> dict[str, Any]:
@@ -48,52 +40,26 @@ def bench(sizes: list[tuple[int, int]], passes: int, frames: int) -> dict[str, A
         images = [s.image for s in generate_drive("track1", frames, seed=0, width=w, height=h)]
         times: dict[str, list[float]] = {name: [] for name in paths}
         for turn in range(2 * passes):
-            name = list(paths)[turn % 2 if (turn // 2) % 2 == 0 else 1 - turn % 2]
+            name = turn_name(turn, list(paths))
             removal.compiled = paths[name]  # type: ignore[assignment]
             times[name].append(_time_method(processor, images, _quiet, passes=1)["ms_per_frame"])
         removal.compiled = compiled  # type: ignore[assignment]
-        medians = {name: statistics.median(t) for name, t in times.items()}
-        rows.append(
-            {
-                "size": [w, h],
-                "ms_per_frame": medians,
-                "passes": {name: [round(t, 4) for t in ts] for name, ts in times.items()},
-                "numpy_over_kernel": medians["numpy"] / medians["kernel"],
-            }
-        )
-    return {
-        "kind": "measured",
-        "what": "image-split-uu pipeline + decision, road-fill split compiled vs NumPy path",
-        "frames": frames,
-        "one_core": core is not None,
-        "machine": {"python": platform.python_version()},
-        "rows": rows,
-    }
+        rows.append(size_row((w, h), times, "ms_per_frame", 4))
+    what = "image-split-uu pipeline + decision, road-fill split compiled vs NumPy path"
+    return measured(what, frames, core is not None, rows)
 
 
 def _quiet(_message: str) -> None:
     pass
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument("--json", action="store_true")
-    parser.add_argument("--passes", type=int, default=6)
-    parser.add_argument("--frames", type=int, default=100)
-    parser.add_argument("--sizes", default="640x480,320x160")
-    args = parser.parse_args()
-    result = bench([_size(s) for s in args.sizes.split(",")], args.passes, args.frames)
-    if args.json:
-        print(json.dumps(result))
-        return
-    for row in result["rows"]:
-        ms = row["ms_per_frame"]
-        print(
-            f"{row['size'][0]}x{row['size'][1]}: kernel {ms['kernel']:.3f} ms, NumPy path "
-            f"{ms['numpy']:.3f} ms a frame ({row['numpy_over_kernel']:.2f}x)",
-            file=sys.stdout,
-        )
+def _line(row: dict[str, Any]) -> str:
+    ms = row["ms_per_frame"]
+    return (
+        f"{row['size'][0]}x{row['size'][1]}: kernel {ms['kernel']:.3f} ms, NumPy path "
+        f"{ms['numpy']:.3f} ms a frame ({row['numpy_over_kernel']:.2f}x)"
+    )
 
 
 if __name__ == "__main__":
-    main()
+    main(__doc__, bench, (6, 100, "640x480,320x160"), _line)

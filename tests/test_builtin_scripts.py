@@ -119,31 +119,31 @@ def test_the_recipe_is_one_network_and_an_ensemble_is_a_variant(
 def test_the_mirror_averaged_variant_reaches_the_estimator(
     scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    pytest.importorskip("torch")
     _, train = scripts
-    argv = ["--tta", "--no-final", "--results", str(tmp_path / "r.json")]
-    monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
-    monkeypatch.setattr(train, "VARIANT", {})
-    monkeypatch.setattr(train, "SEEDS", train.SEEDS)
-    monkeypatch.setattr(train, "load_sets", _past_the_checks)
-    with pytest.raises(RuntimeError, match="past the argument checks"):
-        train.main()
+    _run_to_the_data(
+        train, ["--tta", "--no-final", "--results", str(tmp_path / "r.json")], monkeypatch
+    )
     assert train.training_options().params == {"tta": True}
 
 
 def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
     scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    pytest.importorskip("torch")
     _, train = scripts
     argv = ["--edge-frames", "--no-final", "--results", str(tmp_path / "r.json")]
+    _run_to_the_data(train, argv, monkeypatch)
+    assert train.VARIANT == {"standardise_frames": False, "edge_frames": True}
+
+
+def _run_to_the_data(train: Any, argv: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """``train_builtin.main()`` with ``argv``, stopped where it would load the recordings."""
+    pytest.importorskip("torch")
     monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
     monkeypatch.setattr(train, "VARIANT", {})
     monkeypatch.setattr(train, "SEEDS", train.SEEDS)
     monkeypatch.setattr(train, "load_sets", _past_the_checks)
     with pytest.raises(RuntimeError, match="past the argument checks"):
         train.main()
-    assert train.VARIANT == {"standardise_frames": False, "edge_frames": True}
 
 
 def _past_the_checks(_root: Path) -> None:
