@@ -49,6 +49,8 @@ def test_run_a_video_then_resume_without_redoing_work(drive: Path, tmp_path: Pat
     first, summary = json_lines(res.stdout)
     assert first["frames"] == 24 and first["frames_per_second"] > 0 and first["seconds"] > 0
     assert summary["summary"] and summary["frames"] == 24
+    assert summary["processor"]["method"] in summary["model"]  # the record names what decided
+    assert json.loads((out / "summary.json").read_text())["processor"] == summary["processor"]
     frames_csv = (out / "track2" / "frames.csv").read_bytes()
     assert frames_csv.count(b"\n") == 25 and (out / "track2" / "overlay.mp4").stat().st_size > 0
     again = runner.invoke(app, args)

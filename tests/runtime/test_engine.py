@@ -73,6 +73,7 @@ def test_a_run_writes_rows_in_frame_order_an_overlay_and_a_summary(
     summary = json.loads((tmp_path / "summary.json").read_text())
     entry = summary["inputs"][0]
     assert summary["ok"] and summary["frames"] == N and summary["timing"] == "measured"
+    assert summary["processor"] == HalvesProcessor().settings()  # what decided, on record
     assert entry["frames"] == N and entry["chunks"] == 7 and entry["decoder"] == "pyav"
     assert entry["frames_per_second"] > 0 and entry["first_bad_frame"] is None
     assert sum(entry["directions"].values()) == N

@@ -3,7 +3,8 @@
 :func:`run_inputs` takes inputs (video files, image folders, or frame-source objects such
 as :class:`qdcnn.data.frames.FrameSet`) and a per-frame processor, and writes per
 input ``DIR/<name>/frames.csv``, ``DIR/<name>/timings.csv``, optionally
-``DIR/<name>/overlay.mp4``, and ``DIR/summary.json``.
+``DIR/<name>/overlay.mp4``, and ``DIR/summary.json`` (with the processor's settings: what
+decided).
 
 Chunks. Each input is cut into chunks of ``chunk_frames`` frames (512 by default), the unit
 of resuming and of distribution (:class:`qdcnn.runtime.scheduler.Executor`). A chunk's
@@ -155,6 +156,8 @@ class RunResult:
     inputs: list[InputResult]
     seconds: float
     executor: dict[str, Any]
+    #: the processor's settings (what decided: model, method, seed): its ``settings()``
+    processor: dict[str, Any] = field(default_factory=dict)
 
     @property
     def frames(self) -> int:
@@ -185,6 +188,7 @@ class RunResult:
             "ok": self.ok,
             "executor": self.executor,
             "timing": "measured",
+            "processor": self.processor,
             "inputs": [r.to_dict() for r in self.inputs],
         }
 
@@ -310,7 +314,9 @@ def run_inputs(
         with OutputFolder(out_dir, wait=opts.wait) as folder:
             plans = [_plan(inp, processor, sources, folder, opts) for inp in resolved]
             _execute(plans, processor, sources, folder, ex, progress)
-            result = RunResult(str(out_dir), [p.result for p in plans], 0.0, ex.describe())
+            result = RunResult(
+                str(out_dir), [p.result for p in plans], 0.0, ex.describe(), processor.settings()
+            )
             result.seconds = time.perf_counter() - t0
             result.executor["stats"] = ex.stats.to_dict()
             folder.write_text(SUMMARY, _json(result.to_dict()))
