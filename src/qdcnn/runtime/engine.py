@@ -312,10 +312,11 @@ def run_inputs(
     t0 = time.perf_counter()
     try:
         with OutputFolder(out_dir, wait=opts.wait) as folder:
-            plans = [_plan(inp, processor, sources, folder, opts) for inp in resolved]
+            settings = processor.settings()  # in every input's config hash and the summary
+            plans = [_plan(inp, processor, settings, sources, folder, opts) for inp in resolved]
             _execute(plans, processor, sources, folder, ex, progress)
             result = RunResult(
-                str(out_dir), [p.result for p in plans], 0.0, ex.describe(), processor.settings()
+                str(out_dir), [p.result for p in plans], 0.0, ex.describe(), settings
             )
             result.seconds = time.perf_counter() - t0
             result.executor["stats"] = ex.stats.to_dict()
@@ -332,12 +333,12 @@ def _json(data: Mapping[str, Any]) -> str:
     return json.dumps(data, indent=1, allow_nan=False) + "\n"
 
 
-def _config_of(processor: FrameProcessor, opts: RunOptions, header: list[str], decoder: str) -> str:
+def _config_of(settings: dict[str, Any], opts: RunOptions, header: list[str], decoder: str) -> str:
     return config_hash(
         {
             "format": FORMAT_VERSION,
             "qdcnn": __version__,
-            "processor": processor.settings(),
+            "processor": settings,
             "chunk_frames": opts.chunk_frames,
             "smooth": opts.smooth,
             "overlay": opts.overlay,
@@ -352,6 +353,7 @@ def _config_of(processor: FrameProcessor, opts: RunOptions, header: list[str], d
 def _plan(
     inp: Input,
     processor: FrameProcessor,
+    settings: dict[str, Any],
     sources: dict[str, Any],
     folder: OutputFolder,
     opts: RunOptions,
@@ -382,7 +384,7 @@ def _plan(
         # 4:2:0 video needs even sizes: the overlay gets one replicated edge pixel more
         result.info["overlay_padded_to"] = [size[0] + size[0] % 2, size[1] + size[1] % 2]
     plan.n_frames, plan.truncated_from = probe.frames, probe.truncated_from
-    config = _config_of(processor, opts, header, decoder)
+    config = _config_of(settings, opts, header, decoder)
     plan.ledger = InputLedger(inp.name, identity, config)
     plan.chunks = _chunk_tasks(inp, probe, decoder, opts)
     result.chunks = len(plan.chunks)
