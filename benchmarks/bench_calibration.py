@@ -3,8 +3,8 @@
 The calibrated detector (``qdcnn bench shadows``, row ``uu-exact-calibrated``) finds each
 frame's centroid from its block means: Otsu's two-class split, then the propagation's fixed
 point. This script times that step alone on the bench's frames (track2 rendered at each
-``--sizes``): :func:`qdcnn.vision.block_kernels.calibrate` (what the detector runs) and
-:func:`qdcnn.vision.shadows.calibrate_centroid` (the NumPy reference it is tested against),
+``--sizes``): :func:`qdcnn.vision.block_kernels.calibrate_with` (what the detector runs)
+and :func:`qdcnn.vision.shadows.calibrate_centroid` (the NumPy reference it is tested against),
 in turns, in one process pinned to one core. Timing one step of about 15 us inside the
 whole detector's 60 us leaves it in the machine's drift; timed alone, in turns with its
 reference, a change to it shows. All times are **measured**, medians over ``--passes``.
@@ -41,9 +41,8 @@ def _calls(means: Any) -> dict[str, Callable[[], object]]:
     kernels = shadows.compiled_kernels()
     assert kernels is not None, "Numba is needed (or QDCNN_KERNELS=numpy is set)"
     values = means.ravel()
-    numbers = (settings[0], settings[1], tables, int(settings[2]), settings[3], settings[4])
     return {
-        "kernel": lambda: kernels.calibrate(values, *numbers),
+        "kernel": lambda: kernels.calibrate_with(values, tables, settings),
         "numpy": lambda: shadows.calibrate_centroid(means, "intensity", cfg),
     }
 

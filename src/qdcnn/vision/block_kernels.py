@@ -68,19 +68,17 @@ def calibrate_blocks(
     tan_table: Any,
     settings: Any,
 ) -> Any:
-    """:func:`block_sums` and :func:`calibrate` in one call; ``settings`` holds
-    ``calibrate``'s numbers (bin width, angle per value, iterations, tolerance, spread)."""
+    """:func:`block_sums` and :func:`calibrate_with` in one call."""
     sums, means = block_sums(grey, row_edges, col_edges, area)
-    theta = calibrate(
-        means.ravel(),
-        settings[0],
-        settings[1],
-        tan_table,
-        int(settings[2]),
-        settings[3],
-        settings[4],
-    )
-    return sums, means, theta
+    return sums, means, calibrate_with(means.ravel(), tan_table, settings)
+
+
+@njit(**_JIT)
+def calibrate_with(values: Any, tan_table: Any, settings: Any) -> float:
+    """:func:`calibrate` of block means ``values``; ``settings`` holds its numbers (bin
+    width, angle per value, iterations, tolerance, spread)."""
+    bin_width, angle_per_value, tol, spread = settings[0], settings[1], settings[3], settings[4]
+    return calibrate(values, bin_width, angle_per_value, tan_table, int(settings[2]), tol, spread)
 
 
 @njit(**_JIT)
