@@ -647,7 +647,7 @@ class CNNDirectionClassifier(ClassifierMixin, BaseEstimator):
         """Network ``k`` of the ensemble: its seed, its checkpoints in their own folder."""
         seed = member_seed(self.seed, k)
         member: CNNDirectionClassifier = clone(self).set_params(ensemble=1, seed=seed)
-        if self.checkpoint_dir is not None and self.ensemble > 1:
+        if self.checkpoint_dir is not None:  # only ensembles have members
             member.set_params(checkpoint_dir=Path(self.checkpoint_dir) / f"network{k}")
         return member
 
