@@ -70,6 +70,27 @@ def test_expand_median_is_the_numpy_mask(
     np.testing.assert_array_equal(ours, expected.astype(bool))
 
 
+@pytest.mark.parametrize(
+    ("size", "downsample", "by_four"),
+    [((320, 160), 4, True), ((640, 480), 4, True), ((321, 160), 4, False), ((320, 160), 1, False)],
+)
+@pytest.mark.parametrize("ksize", [1, 5, 15])
+def test_both_row_expansions_give_the_numpy_mask(
+    size: tuple[int, int], downsample: int, by_four: bool, ksize: int
+) -> None:
+    """The mask's rows are expanded four pixels at a time where the geometry allows it
+    (the default downsampling on a width it divides) and pixel by pixel elsewhere: both
+    give the NumPy mask."""
+    geometry = block_grid(size[::-1], downsample, 79)
+    assert kernels._in_groups_of_four(geometry.col_of) is by_four
+    blocks = np.random.default_rng(ksize).random(geometry.grid_shape) < 0.4
+    expected = expand_blocks(blocks, geometry).view(np.uint8)
+    if ksize > 1:
+        expected = binary_median(expected, ksize)
+    ours = kernels.expand_median(blocks.view(np.uint8), geometry.row_of, geometry.col_of, ksize)
+    np.testing.assert_array_equal(ours, expected.astype(bool))
+
+
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), dark=st.floats(0, 200), n=st.integers(20, 4000))
 def test_calibration_agrees_with_the_numpy_calibration(seed: int, dark: float, n: int) -> None:
