@@ -154,35 +154,111 @@ def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) 
         np.testing.assert_array_equal(fused[1], blocks)
 
 
+@pytest.mark.parametrize("size", [(320, 160), (1280, 720)])
+def test_the_fused_calibrated_shots_are_the_two_calls(size: tuple[int, int]) -> None:
+    """``detect_calibrated_shots`` gives what ``calibrate_blocks`` then ``detect_shots``
+    give, from the same uniforms."""
+    from qdcnn.experiments.shadow_bench import bench_frames
+    from qdcnn.quantum.sampling import CDF_GRID
+    from qdcnn.vision.shadows import _pixel_edges, _shot_tables, feature_input, state_lookup
+
+    cfg = ShadowConfig(shots=1024)
+    tables, _ = _shot_tables(1024, cfg.threshold)
+    for seed, image in enumerate(bench_frames(*size, 3, seed=2)):
+        grey = feature_input(image, "intensity")
+        geometry = block_grid(grey.shape[:2], cfg.downsample, cfg.grid)
+        lookup = state_lookup(geometry, grey.shape[1], cfg.downsample)
+        assert lookup is not None
+        edges = _pixel_edges(geometry, cfg.downsample)
+        calibration = (_half_angle_tangents(), _calibration_settings(cfg))
+        amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
+        image_of = (geometry.row_of, geometry.col_of, cfg.median_ksize)
+        u = np.random.default_rng(seed).random(edges[2].size)
+        fused = kernels.detect_calibrated_shots(
+            grey, edges, *calibration, amplitudes, u, tables, CDF_GRID, *image_of
+        )
+        sums, blocks, theta = kernels.calibrate_blocks(grey, *edges, *calibration)
+        half = fused[2] * (np.pi / 255.0) / 2.0
+        two_calls = kernels.detect_shots(
+            sums, amplitudes, np.cos(half), np.sin(half), u, tables, CDF_GRID, *image_of
+        )
+        assert fused[2] == min(max(theta * (255.0 / np.pi), 0.0), 255.0)
+        np.testing.assert_allclose(fused[3], two_calls[0], rtol=1e-15, atol=1e-15)
+        for ours, theirs in zip(fused[4:], two_calls[1:], strict=True):
+            np.testing.assert_array_equal(ours, theirs)
+        np.testing.assert_array_equal(fused[0], sums)
+        np.testing.assert_array_equal(fused[1], blocks)
+
+
+@pytest.mark.parametrize("guess_right", [True, False])
+def test_a_block_between_the_brackets_is_settled_and_the_mask_redone_if_it_changed(
+    guess_right: bool,
+) -> None:
+    """The shot kernels put a block whose uniform fell between its CDF brackets in the
+    mask with a first guess; settling it with the CDF at its own ``p`` keeps that mask
+    when the guess was right and expands the block mask again when it was not."""
+    from scipy.special import bdtr
+
+    from qdcnn.vision.shadows import _settled_mask
+
+    geometry = block_grid((160, 320), 4, 79)
+    image_of = (geometry.row_of, geometry.col_of, 5)
+    decided = np.zeros(geometry.grid_shape, np.uint8)
+    decided[10:14, 20:30] = 1
+    p = np.full(decided.size, 0.3)
+    shots, limit, block = 1024, 40, 12 * decided.shape[1] + 30  # beside the 1s
+    p[block] = 0.04
+    u = np.full(decided.size, 0.5)
+    u[block] = float(bdtr(limit, shots, p[block])) * (1 - 1e-9)  # passes, just
+    decided.ravel()[block] = 1 if guess_right else 0
+    mask = kernels.expand_median(decided, *image_of)
+    settled = _settled_mask(
+        kernels, decided, np.array([block]), (p, u, shots, limit), mask, image_of
+    )
+    assert decided.ravel()[block] == 1
+    assert (settled is mask) is guess_right
+    assert np.array_equal(settled, mask) is guess_right
+    np.testing.assert_array_equal(settled, kernels.expand_median(decided, *image_of))
+
+
+@pytest.mark.parametrize("shots", [None, 1024])
 def test_a_frame_without_a_certified_fixed_point_is_calibrated_with_numpy(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, shots: int | None
 ) -> None:
     """Where the kernels find no certified fixed point (NaN: rare, so simulated here), the
-    detector calibrates with NumPy and gives the NumPy path's result."""
+    detector calibrates with NumPy and gives the NumPy path's result (with shots, from the
+    same uniforms)."""
     from types import SimpleNamespace
 
     from qdcnn.experiments.shadow_bench import bench_frames
     from qdcnn.vision import shadows
     from qdcnn.vision.compiled import KERNELS_VARIABLE
 
+    empty = np.empty((0, 0), np.uint8)
+
     def no_fixed_point(grey: np.ndarray, *args: object) -> tuple[object, ...]:
         sums, blocks, *_ = kernels.detect_calibrated(grey, *args)
-        empty = np.empty((0, 0), np.uint8)
         return sums, blocks, np.nan, np.empty(0), empty, empty.view(np.bool_)
 
+    def no_fixed_point_shots(grey: np.ndarray, *args: object) -> tuple[object, ...]:
+        sums, blocks, *_ = kernels.detect_calibrated_shots(grey, *args)
+        return sums, blocks, np.nan, np.empty(0), empty, np.empty(0, np.intp), empty.view(bool)
+
     calls: list[float] = []
-    cfg = ShadowConfig(shots=None)
+    cfg = ShadowConfig(shots=shots)
     image = bench_frames(320, 160, 1, seed=5)[0]
     with monkeypatch.context() as numpy_path:
         numpy_path.setenv(KERNELS_VARIABLE, "numpy")
-        reference = shadows.detect_shadows_uu(image, cfg)
+        reference = shadows.detect_shadows_uu(image, cfg, rng=3)
     stub = SimpleNamespace(**vars(kernels))
     stub.detect_calibrated = no_fixed_point
+    stub.detect_calibrated_shots = no_fixed_point_shots
     monkeypatch.setattr(shadows, "compiled_kernels", lambda: stub)
     monkeypatch.setattr(shadows, "_calibrated_value", _counting(shadows, calls))
-    ours = shadows.detect_shadows_uu(image, cfg)
+    ours = shadows.detect_shadows_uu(image, cfg, rng=3)
     assert len(calls) == 1 and ours.centroid == reference.centroid
     np.testing.assert_array_equal(ours.mask, reference.mask)
+    np.testing.assert_array_equal(ours.block_scores, reference.block_scores)
     assert ours.centroid_source == "calibrated"
 
 

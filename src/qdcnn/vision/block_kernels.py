@@ -111,6 +111,36 @@ def detect_calibrated(
 
 
 @njit(**_JIT)
+def detect_calibrated_shots(
+    grey: Any,
+    edges: Any,
+    tan_table: Any,
+    settings: Any,
+    amplitudes: Any,
+    u: Any,
+    tables: Any,
+    grid: int,
+    row_of: Any,
+    col_of: Any,
+    ksize: int,
+) -> Any:
+    """:func:`calibrate_blocks` and :func:`detect_shots` in one call: the shot-sampled
+    detection with the centroid calibrated on the frame, one uniform per block in ``u``.
+    The centroid as in :func:`detect_calibrated` (NaN, with empty results, where the
+    fixed point has no answer)."""
+    sums, means, theta = calibrate_blocks(grey, *edges, tan_table, settings)
+    if np.isnan(theta):
+        empty = np.empty((0, 0), np.uint8)
+        return sums, means, theta, np.empty(0), empty, np.empty(0, np.intp), empty.view(np.bool_)
+    centroid = min(max(theta * settings[5], 0.0), 255.0)
+    half = centroid * settings[1] / 2.0
+    p, blocks, unsure, mask = detect_shots(
+        sums, amplitudes, math.cos(half), math.sin(half), u, tables, grid, row_of, col_of, ksize
+    )
+    return sums, means, centroid, p, blocks, unsure, mask
+
+
+@njit(**_JIT)
 def band_mask(sums: Any, size_index: Any, low: Any, width: Any) -> Any:
     """Blocks whose sum lies in its size's band ``low <= sum <= low + width``."""
     out = np.empty(sums.shape, np.uint8)
@@ -227,12 +257,10 @@ def detect_shots(
     ksize: int,
 ) -> Any:
     """:func:`shot_mask` and :func:`expand_median` in one call (``tables``: the fine and
-    coarse CDF brackets). With blocks left between the brackets the mask is left empty
-    (0 x 0): the caller settles those blocks, then expands."""
+    coarse CDF brackets). Blocks left between the brackets are in the mask with their
+    first guess: the caller settles them and expands again if one of them changed."""
     p, passed, unsure = shot_mask(sums, *amplitudes, cos_c, sin_c, u, tables, grid)
     blocks = passed.view(np.uint8).reshape(sums.shape)
-    if unsure.size:
-        return p, blocks, unsure, np.empty((0, 0), np.bool_)
     return p, blocks, unsure, expand_median(blocks, row_of, col_of, ksize)
 
 
@@ -270,6 +298,11 @@ def shot_mask(
             continue
         passed[b] = u[b] <= lower[cell]
         if (u[b] <= upper[cell]) != passed[b]:
+            # a first guess from the CDF interpolated across the cell (the caller settles
+            # the block): right unless u lies between that line and the curve, so the
+            # mask seldom has to be expanded again
+            guess = upper[cell] + (lower[cell] - upper[cell]) * (p[b] * grid - cell)
+            passed[b] = u[b] <= guess
             unsure[n_unsure] = b
             n_unsure += 1
     return p, passed, unsure[:n_unsure]

@@ -686,8 +686,10 @@ def _detect_compiled(
     same block sums, decisions and mask as the NumPy path (the calibrated centroid to a
     few units in the last place), in one or two kernel calls."""
     rows, cols, area = _pixel_edges(geometry, cfg.downsample)
-    if cfg.centroid is None and model is None and cfg.shots is None and cfg.median_ksize**2 <= 255:
-        return _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
+    if cfg.centroid is None and model is None and cfg.median_ksize**2 <= 255:
+        if cfg.shots is None:
+            return _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
+        return _detect_calibrated_shots(kernels, grey, geometry, lookup, cfg, rng)
     if cfg.centroid is None and model is None:
         sums, blocks, theta = kernels.calibrate_blocks(
             grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
@@ -705,7 +707,8 @@ def _detect_compiled(
             exact = partial(_overlap_scores, lookup, sums.ravel(), centroid)
             return _detection(mask, blocks, exact, centroid, cfg, source, decided)
         sums, blocks = kernels.block_sums(grey, rows, cols, area)
-    scores, decided, mask = _compiled_decisions(kernels, lookup, sums, centroid, cfg, rng, geometry)
+    u = None if cfg.shots is None else as_generator(rng).random(sums.size)
+    scores, decided, mask = _compiled_decisions(kernels, lookup, sums, centroid, cfg, u, geometry)
     return _detection(mask, blocks, scores, centroid, cfg, source, decided)
 
 
@@ -737,6 +740,45 @@ def _detect_calibrated(
         scores, decided, mask = _compiled_decisions(
             kernels, lookup, sums, centroid, cfg, None, geometry
         )
+    return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
+
+
+def _detect_calibrated_shots(
+    kernels: ModuleType,
+    grey: NDArray[Any],
+    geometry: BlockGrid,
+    lookup: StateLookup,
+    cfg: ShadowConfig,
+    rng: int | np.random.Generator | None,
+) -> ShadowDetection:
+    """:func:`_detect_calibrated` with shots, in one kernel call
+    (:func:`block_kernels.detect_calibrated_shots`): the uniforms, brackets and decisions
+    of :func:`sampled_decisions`."""
+    edges = _pixel_edges(geometry, cfg.downsample)
+    shots = int(cfg.shots or 0)
+    tables, limit = _shot_tables(shots, cfg.threshold)
+    u = as_generator(rng).random(int(edges[2].size))
+    image = (geometry.row_of, geometry.col_of, cfg.median_ksize)
+    sums, blocks, centroid, p, decided, unsure, mask = kernels.detect_calibrated_shots(
+        grey,
+        edges,
+        _half_angle_tangents(),
+        _calibration_settings(cfg),
+        (lookup.offsets, lookup.cos_half, lookup.sin_half),
+        u,
+        tables,
+        CDF_GRID,
+        *image,
+    )
+    if math.isnan(centroid):
+        centroid = _calibrated_value(centroid, blocks, cfg)
+        scores, decided, mask = _compiled_decisions(
+            kernels, lookup, sums, centroid, cfg, u, geometry
+        )
+        return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
+    mask = _settled_mask(kernels, decided, unsure, (p, u, shots, limit), mask, image)
+    passed = decided.ravel().view(np.bool_)
+    scores = partial(_inverse_scores, p, u, passed, shots, limit)
     return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
 
 
@@ -896,14 +938,14 @@ def _compiled_decisions(
     sums: NDArray[np.int64],
     centroid: float,
     cfg: ShadowConfig,
-    rng: int | np.random.Generator | None,
+    u: NDArray[np.float64] | None,
     geometry: BlockGrid,
 ) -> tuple[
     NDArray[np.float64] | Callable[[], NDArray[np.float64]], NDArray[np.uint8], NDArray[np.bool_]
 ]:
     """Scores (or how to get them), 0/1 decisions and image mask of the ``(gh, gw)`` block
-    sums without a band: the exact scores thresholded, or one uniform per block with shots
-    (:func:`_looked_up`)."""
+    sums without a band: the exact scores thresholded, or with shots the uniforms ``u``,
+    one per block (:func:`_looked_up`)."""
     half = float(value_to_angle(centroid)) / 2.0
     amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
     ksize = cfg.median_ksize
@@ -914,8 +956,9 @@ def _compiled_decisions(
         )
         outcome: tuple[Any, Any, Any] = (scores, decided, mask)
     else:
+        assert u is not None
         outcome = _compiled_shots(
-            kernels, amplitudes, (np.cos(half), np.sin(half)), sums, cfg, rng, image
+            kernels, amplitudes, (np.cos(half), np.sin(half)), sums, cfg, u, image
         )
     if ksize**2 > 255:
         mask = _to_image_mask(
@@ -931,26 +974,54 @@ def _compiled_shots(
     centroid_state: tuple[float, float],
     sums: NDArray[np.int64],
     cfg: ShadowConfig,
-    rng: int | np.random.Generator | None,
+    u: NDArray[np.float64],
     image: tuple[Any, ...],
 ) -> tuple[Callable[[], NDArray[np.float64]], NDArray[np.uint8], NDArray[np.bool_]]:
     """:func:`sampled_decisions` by :func:`block_kernels.detect_shots`: the same uniforms,
     brackets and decisions."""
-    shots, limit = int(cfg.shots or 0), _most_ones(int(cfg.shots or 0), cfg.threshold)
-    u = as_generator(rng).random(sums.size)
-    table_limit = min(max(limit, 0), shots - 1)  # any valid table; out of range is decided below
-    tables = (*cdf_table(shots, table_limit)[::-1], *coarse_cdf_brackets(shots, table_limit))
+    shots = int(cfg.shots or 0)
+    tables, limit = _shot_tables(shots, cfg.threshold)
     p, decided, unsure, mask = kernels.detect_shots(
         sums, amplitudes, *centroid_state, u, tables, CDF_GRID, *image
     )
+    mask = _settled_mask(kernels, decided, unsure, (p, u, shots, limit), mask, image)
     passed = decided.ravel().view(np.bool_)
-    if limit < 0 or limit >= shots or unsure.size:
-        if limit < 0 or limit >= shots:
-            passed[:] = limit >= shots
-        else:
-            settle_between_brackets(passed, unsure, p, u, shots, limit)
-        mask = kernels.expand_median(decided, *image)
     return partial(_inverse_scores, p, u, passed, shots, limit), decided, mask
+
+
+@lru_cache(maxsize=8)
+def _shot_tables(shots: int, threshold: float) -> tuple[tuple[NDArray[np.float64], ...], int]:
+    """The fine and coarse CDF brackets the shot kernels take, and the largest passing
+    count of ones (out of ``0 .. shots - 1`` it is decided by :func:`_settled_mask`)."""
+    limit = _most_ones(shots, threshold)
+    table_limit = min(max(limit, 0), shots - 1)  # any valid table
+    return (*cdf_table(shots, table_limit)[::-1], *coarse_cdf_brackets(shots, table_limit)), limit
+
+
+def _settled_mask(
+    kernels: ModuleType,
+    decided: NDArray[np.uint8],
+    unsure: NDArray[np.intp],
+    sampling: tuple[NDArray[np.float64], NDArray[np.float64], int, int],
+    mask: NDArray[np.bool_],
+    image: tuple[Any, ...],
+) -> NDArray[np.bool_]:
+    """Settle, in ``decided``, the blocks a shot kernel left between its CDF brackets
+    (``sampling``: their ``p``, the uniforms, shots and limit) or a limit outside the
+    tables decides; the kernel's ``mask`` holds its first guesses, so it is expanded again
+    only where a decision changed."""
+    p, u, shots, limit = sampling
+    passed = decided.ravel().view(np.bool_)
+    if 0 <= limit < shots:
+        if unsure.size == 0:
+            return mask
+        guess = passed.take(unsure)
+        settle_between_brackets(passed, unsure, p, u, shots, limit)
+        if np.array_equal(guess, passed.take(unsure)):
+            return mask
+    else:
+        passed[:] = limit >= shots
+    return kernels.expand_median(decided, *image)
 
 
 def _simulated(
