@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from qdcnn.vision.compiled import KERNELS_VARIABLE, compiled
-from qdcnn.vision.removal import channel_medians, lit_medians, remove_shadows
+from qdcnn.vision.removal import channel_medians, fill_where, lit_medians, remove_shadows
 
 pytestmark = pytest.mark.skipif(
     compiled("removal_kernels") is None, reason="numba is not installed"
@@ -62,3 +62,34 @@ def test_strided_views_are_read_as_they_are() -> None:
     got = lit_medians(flipped, region, shadow, np.empty((30, 50), bool))
     np.testing.assert_array_equal(got, channel_medians(flipped[lit]))
     assert remove_shadows(flipped, shadow, region).shape == flipped.shape
+
+
+@settings(max_examples=100, deadline=None)
+@given(case=_regions())
+def test_lit_levels_counts_each_channel_of_the_lit_pixels(
+    case: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """The counts (kept in four histograms by column, then summed) are each channel's
+    histogram of the lit pixels, and the shadow pixels of the region are marked."""
+    pixels, region, shadow = case
+    kernels = compiled("removal_kernels")
+    target = np.zeros(region.shape, bool)
+    counts, shaded = kernels.lit_levels(pixels, region, shadow, target)
+    lit = pixels[region & ~shadow]
+    expected = [np.bincount(lit[:, k], minlength=256) for k in range(pixels.shape[2])]
+    np.testing.assert_array_equal(counts, np.array(expected).reshape(counts.shape))
+    np.testing.assert_array_equal(target, region & shadow)
+    assert shaded == int((region & shadow).sum())
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), strided=st.booleans())
+def test_fill_where_sets_the_marked_pixels_and_only_them(seed: int, strided: bool) -> None:
+    rng = np.random.default_rng(seed)
+    values = rng.integers(0, 256, (23, 41), dtype=np.uint8)
+    where = rng.random((23, 82 if strided else 41)) < 0.3
+    marks = where[:, ::2] if strided else where
+    expected = values.copy()
+    expected[marks] = 201
+    fill_where(values, marks, np.uint8(201))
+    np.testing.assert_array_equal(values, expected)

@@ -244,9 +244,7 @@ def fit_line(segments: NDArray[np.float64]) -> tuple[float, float] | None:
     return a, xm - a * ym
 
 
-def pair_status(
-    lines: Sequence[tuple[float, float] | None], rows: tuple[float, float]
-) -> Status:
+def pair_status(lines: Sequence[tuple[float, float] | None], rows: tuple[float, float]) -> Status:
     """The status of a frame's two fitted lines (left first) over the rows ``rows`` (pixels).
 
     "no-lines" or "one-line" when lines are missing; for two lines "crossed" when they meet

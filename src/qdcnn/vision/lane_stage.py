@@ -35,7 +35,7 @@ from qdcnn.vision.lanes import (
     smooth_between,
 )
 from qdcnn.vision.metrics import as_shadow_mask
-from qdcnn.vision.removal import lit_medians, remove_shadows
+from qdcnn.vision.removal import fill_where, lit_medians, remove_shadows
 from qdcnn.vision.roi import polygon_mask
 
 #: Plans kept per thread (one per frame size and ROI); older ones are dropped beyond it.
@@ -164,4 +164,4 @@ def _grey_window(
         fill = cv2.cvtColor(value.reshape(1, 1, 3), cv2.COLOR_RGB2GRAY)[0, 0]
     else:
         fill = value[0]
-    np.copyto(plan.grey[plan.band_in_window], fill, where=target[:, plan.cols])
+    fill_where(plan.grey[plan.band_in_window], target[:, plan.cols], fill)

@@ -145,6 +145,16 @@ def lit_medians(
     return masked_channel_medians(pixels, lit)
 
 
+def fill_where(values: NDArray[np.uint8], where: NDArray[np.bool_], value: np.uint8) -> None:
+    """``values[where] = value`` in place, for a 2-D ``uint8`` array: compiled
+    (:func:`~qdcnn.vision.removal_kernels.fill_where`) unless ``QDCNN_KERNELS=numpy``."""
+    kernels = compiled("removal_kernels")
+    if kernels is not None:
+        kernels.fill_where(values, where, value)
+    else:
+        np.copyto(values, value, where=where)
+
+
 def _medians_from_counts(counts: NDArray[np.intp]) -> NDArray[np.float64]:
     """Medians of ``C`` histograms of 256 levels, shape ``(C, 256)``, as :func:`numpy.median`."""
     n = int(counts[0].sum())
