@@ -4,6 +4,8 @@ and the calibration (to 1e-12: its Newton steps use another tangent and summatio
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -12,6 +14,7 @@ from hypothesis import strategies as st
 from qdcnn.config import ShadowConfig
 from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadows import (
+    BlockGrid,
     _calibration_settings,
     _half_angle_tangents,
     binary_median,
@@ -61,7 +64,10 @@ def test_expand_median_is_the_numpy_mask(
 ) -> None:
     if min(h, w) < downsample:
         return
-    geometry = block_grid((h, w), downsample, grid)
+    _assert_expand_median_is_the_numpy_mask(block_grid((h, w), downsample, grid), ksize, seed)
+
+
+def _assert_expand_median_is_the_numpy_mask(geometry: BlockGrid, ksize: int, seed: int) -> None:
     blocks = np.random.default_rng(seed).random(geometry.grid_shape) < 0.5
     expected = expand_blocks(blocks, geometry).view(np.uint8)
     if ksize > 1:
@@ -83,12 +89,7 @@ def test_both_row_expansions_give_the_numpy_mask(
     give the NumPy mask."""
     geometry = block_grid(size[::-1], downsample, 79)
     assert kernels._in_groups_of_four(geometry.col_of) is by_four
-    blocks = np.random.default_rng(ksize).random(geometry.grid_shape) < 0.4
-    expected = expand_blocks(blocks, geometry).view(np.uint8)
-    if ksize > 1:
-        expected = binary_median(expected, ksize)
-    ours = kernels.expand_median(blocks.view(np.uint8), geometry.row_of, geometry.col_of, ksize)
-    np.testing.assert_array_equal(ours, expected.astype(bool))
+    _assert_expand_median_is_the_numpy_mask(geometry, ksize, seed=ksize)
 
 
 @settings(max_examples=150, deadline=None)
@@ -117,31 +118,50 @@ def _args(cfg: ShadowConfig) -> tuple[object, ...]:
     return bin_width, angle, _half_angle_tangents(), int(iterations), tol, spread
 
 
-@pytest.mark.parametrize("size", [(320, 160), (1280, 720)])
-def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) -> None:
-    """``detect_calibrated`` gives what ``calibrate_blocks`` then ``detect_scores`` give."""
-    from qdcnn.experiments.shadow_bench import bench_frames
-    from qdcnn.vision.shadows import (
-        _calibrated_value,
-        _pixel_edges,
-        feature_input,
-        state_lookup,
-    )
+class _KernelInputs(NamedTuple):
+    """What the calibrated kernels take for one frame, as the detector builds it."""
 
-    cfg = ShadowConfig(shots=None)
+    grey: np.ndarray
+    edges: tuple[np.ndarray, np.ndarray, np.ndarray]
+    calibration: tuple[np.ndarray, np.ndarray]
+    amplitudes: tuple[np.ndarray, np.ndarray, np.ndarray]
+    image_of: tuple[np.ndarray, np.ndarray, int]
+
+
+def _kernel_inputs(size: tuple[int, int], cfg: ShadowConfig) -> list[_KernelInputs]:
+    """The calibrated kernels' inputs for three benchmark frames of ``size``."""
+    from qdcnn.experiments.shadow_bench import bench_frames
+    from qdcnn.vision.shadows import _pixel_edges, feature_input, state_lookup
+
+    out = []
     for image in bench_frames(*size, 3, seed=2):
         grey = feature_input(image, "intensity")
         geometry = block_grid(grey.shape[:2], cfg.downsample, cfg.grid)
         lookup = state_lookup(geometry, grey.shape[1], cfg.downsample)
         assert lookup is not None
-        edges = _pixel_edges(geometry, cfg.downsample)
-        tables = (_half_angle_tangents(), _calibration_settings(cfg))
-        amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
-        image_of = (geometry.row_of, geometry.col_of, cfg.median_ksize)
-        fused = kernels.detect_calibrated(
-            grey, edges, *tables, amplitudes, cfg.threshold, *image_of
+        out.append(
+            _KernelInputs(
+                grey,
+                _pixel_edges(geometry, cfg.downsample),
+                (_half_angle_tangents(), _calibration_settings(cfg)),
+                (lookup.offsets, lookup.cos_half, lookup.sin_half),
+                (geometry.row_of, geometry.col_of, cfg.median_ksize),
+            )
         )
-        sums, blocks, theta = kernels.calibrate_blocks(grey, *edges, *tables)
+    return out
+
+
+@pytest.mark.parametrize("size", [(320, 160), (1280, 720)])
+def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) -> None:
+    """``detect_calibrated`` gives what ``calibrate_blocks`` then ``detect_scores`` give."""
+    from qdcnn.vision.shadows import _calibrated_value
+
+    cfg = ShadowConfig(shots=None)
+    for grey, edges, calibration, amplitudes, image_of in _kernel_inputs(size, cfg):
+        fused = kernels.detect_calibrated(
+            grey, edges, *calibration, amplitudes, cfg.threshold, *image_of
+        )
+        sums, blocks, theta = kernels.calibrate_blocks(grey, *edges, *calibration)
         centroid = _calibrated_value(theta, blocks, cfg)
         half = centroid * (np.pi / 255.0) / 2.0
         scores, decided, mask = kernels.detect_scores(
@@ -158,21 +178,13 @@ def test_the_fused_calibrated_detection_is_the_two_calls(size: tuple[int, int]) 
 def test_the_fused_calibrated_shots_are_the_two_calls(size: tuple[int, int]) -> None:
     """``detect_calibrated_shots`` gives what ``calibrate_blocks`` then ``detect_shots``
     give, from the same uniforms."""
-    from qdcnn.experiments.shadow_bench import bench_frames
     from qdcnn.quantum.sampling import CDF_GRID
-    from qdcnn.vision.shadows import _pixel_edges, _shot_tables, feature_input, state_lookup
+    from qdcnn.vision.shadows import _shot_tables
 
     cfg = ShadowConfig(shots=1024)
     tables, _ = _shot_tables(1024, cfg.threshold)
-    for seed, image in enumerate(bench_frames(*size, 3, seed=2)):
-        grey = feature_input(image, "intensity")
-        geometry = block_grid(grey.shape[:2], cfg.downsample, cfg.grid)
-        lookup = state_lookup(geometry, grey.shape[1], cfg.downsample)
-        assert lookup is not None
-        edges = _pixel_edges(geometry, cfg.downsample)
-        calibration = (_half_angle_tangents(), _calibration_settings(cfg))
-        amplitudes = (lookup.offsets, lookup.cos_half, lookup.sin_half)
-        image_of = (geometry.row_of, geometry.col_of, cfg.median_ksize)
+    for seed, inputs in enumerate(_kernel_inputs(size, cfg)):
+        grey, edges, calibration, amplitudes, image_of = inputs
         u = np.random.default_rng(seed).random(edges[2].size)
         fused = kernels.detect_calibrated_shots(
             grey, edges, *calibration, amplitudes, u, tables, CDF_GRID, *image_of
