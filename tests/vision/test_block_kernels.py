@@ -211,7 +211,7 @@ def test_a_block_between_the_brackets_is_settled_and_the_mask_redone_if_it_chang
     when the guess was right and expands the block mask again when it was not."""
     from scipy.special import bdtr
 
-    from qdcnn.vision.shadows import _settled_mask
+    from qdcnn.vision.shadows import _settled
 
     geometry = block_grid((160, 320), 4, 79)
     image_of = (geometry.row_of, geometry.col_of, 5)
@@ -224,13 +224,14 @@ def test_a_block_between_the_brackets_is_settled_and_the_mask_redone_if_it_chang
     u[block] = float(bdtr(limit, shots, p[block])) * (1 - 1e-9)  # passes, just
     decided.ravel()[block] = 1 if guess_right else 0
     mask = kernels.expand_median(decided, *image_of)
-    settled = _settled_mask(
+    scores, settled = _settled(
         kernels, decided, np.array([block]), (p, u, shots, limit), mask, image_of
     )
     assert decided.ravel()[block] == 1
     assert (settled is mask) is guess_right
     assert np.array_equal(settled, mask) is guess_right
     np.testing.assert_array_equal(settled, kernels.expand_median(decided, *image_of))
+    assert scores()[block] >= 1 - limit / shots  # its sampled score passes too
 
 
 @pytest.mark.parametrize("shots", [None, 1024])

@@ -180,3 +180,12 @@ def test_removal_on_the_regions_rows_equals_the_plain_whole_image_removal(method
         )
         got = remove_shadows(image, shadow, region, method=method)  # type: ignore[arg-type]
         np.testing.assert_array_equal(got, _reference_removal(image, shadow, region, method))
+
+
+def test_an_empty_region_leaves_the_image_as_it_is() -> None:
+    image = np.random.default_rng(0).integers(0, 256, (20, 30, 3), dtype=np.uint8)
+    shadow = np.ones((20, 30), bool)
+    for method in ("road-fill", "relight"):
+        out = remove_shadows(image, shadow, np.zeros((20, 30), bool), method=method)
+        np.testing.assert_array_equal(out, image)
+        assert out is not image

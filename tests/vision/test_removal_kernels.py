@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from qdcnn.errors import InputError, ParameterError
 from qdcnn.vision.compiled import KERNELS_VARIABLE, compiled
 from qdcnn.vision.removal import channel_medians, fill_where, lit_medians, remove_shadows
 
@@ -93,3 +94,15 @@ def test_fill_where_sets_the_marked_pixels_and_only_them(seed: int, strided: boo
     expected[marks] = 201
     fill_where(values, marks, np.uint8(201))
     np.testing.assert_array_equal(values, expected)
+
+
+def test_fill_where_refuses_a_mask_of_another_shape_and_a_level_out_of_range() -> None:
+    """The kernel reads its mask unchecked, so the wrapper checks it first."""
+    values = np.zeros((3, 5), np.uint8)
+    with pytest.raises(InputError, match=r"where: expected bool \(3, 5\), got bool \(1, 5\)"):
+        fill_where(values, np.ones((1, 5), bool), np.uint8(9))
+    with pytest.raises(InputError, match=r"where: expected bool \(3, 5\), got int64 \(3, 5\)"):
+        fill_where(values, np.ones((3, 5), np.int64), np.uint8(9))  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="value"):
+        fill_where(values, np.ones((3, 5), bool), 300)  # type: ignore[arg-type]
+    assert not values.any()

@@ -158,7 +158,7 @@ def test_fast_path_on_the_benchmark_frames(kernels: str, size: tuple[int, int]) 
 
 
 @pytest.mark.parametrize("centroid", [None, 70.0])
-@pytest.mark.parametrize("median_ksize", [1, 5, 17])
+@pytest.mark.parametrize("median_ksize", [1, 5, 15, 17])
 def test_compiled_shots_are_the_numpy_paths_shots(
     centroid: float | None, median_ksize: int
 ) -> None:
@@ -176,6 +176,27 @@ def test_compiled_shots_are_the_numpy_paths_shots(
         np.testing.assert_array_equal(ours.block_mask, theirs.block_mask)
         np.testing.assert_array_equal(ours.block_scores, theirs.block_scores)
         np.testing.assert_array_equal(ours.mask, theirs.mask)
+
+
+@pytest.mark.parametrize("classes", [3, 4])
+@pytest.mark.parametrize("shots", [None, 1024])
+@pytest.mark.parametrize("median_ksize", [5, 17])
+def test_a_multi_class_calibration_is_the_numpy_paths(
+    classes: int, shots: int | None, median_ksize: int
+) -> None:
+    """The kernels calibrate on Otsu's two classes only: with ``calibration_classes`` 3 or
+    4 the compiled detector calibrates the kernel's block means with NumPy, and gives the
+    NumPy path's centroid and masks (it used to give the two-class centroid)."""
+    cfg = ShadowConfig(shots=shots, calibration_classes=classes, median_ksize=median_ksize)
+    image = np.random.default_rng(5).integers(0, 256, (120, 200, 3), dtype=np.uint8)
+    with _kernels("numpy"):
+        theirs = detect_shadows_uu(image, cfg, rng=5)
+        in_two = detect_shadows_uu(image, replace(cfg, calibration_classes=2), rng=5)
+    with _kernels("numba"):
+        ours = detect_shadows_uu(image, cfg, rng=5)
+    assert ours.centroid == theirs.centroid != in_two.centroid
+    np.testing.assert_array_equal(ours.block_scores, theirs.block_scores)
+    np.testing.assert_array_equal(ours.mask, theirs.mask)
 
 
 # --- shots -------------------------------------------------------------------------------

@@ -277,8 +277,9 @@ def shot_mask(
     grid: int,
 ) -> Any:
     """``P(1) = 1 - score`` of each block, its decision ``u <= F(limit)`` from the
-    bracketing CDF tables, and the blocks whose ``u`` falls between the brackets (the
-    caller settles those with the CDF at their own ``p``), as
+    bracketing CDF tables, and the blocks whose ``u`` falls between the brackets (decided
+    here by a first guess, the CDF interpolated across the cell; the caller settles those
+    with the CDF at their own ``p``), as
     :func:`~qdcnn.quantum.sampling.binomial_at_most`. ``tables`` is the fine brackets
     ``(lower, upper)`` per grid cell and the coarse ones ``(low, high)`` per
     :data:`~qdcnn.quantum.sampling.COARSE_CELLS` cells (the lowest and highest fine

@@ -104,6 +104,8 @@ def remove_shadows(
     # only the region's rows can change: the masks and counts work on that band alone
     # (a band of whole rows is contiguous, so OpenCV writes through to ``out``)
     _, y, _, h = cv2.boundingRect(region.view(np.uint8))
+    if h == 0:  # an empty region: nothing to fill
+        return out
     band = slice(y, y + h)
     pixels = img[band].reshape(h, img.shape[1], -1)
     target = np.empty((h, img.shape[1]), dtype=bool)
@@ -132,7 +134,7 @@ def lit_medians(
     """Per-channel median of the lit pixels (in ``region``, not in ``shadow``) of
     ``pixels`` ``(H, W, C)``; ``target`` (bool, ``(H, W)``) receives the region's shadow
     pixels. None when the region has no shadow pixel or no lit one (nothing to fill, or
-    nothing to fill it with). One compiled pass
+    nothing to fill it with). Compiled
     (:func:`~qdcnn.vision.removal_kernels.lit_levels`) unless ``QDCNN_KERNELS=numpy``."""
     kernels = compiled("removal_kernels")
     if kernels is not None:
@@ -146,8 +148,15 @@ def lit_medians(
 
 
 def fill_where(values: NDArray[np.uint8], where: NDArray[np.bool_], value: np.uint8) -> None:
-    """``values[where] = value`` in place, for a 2-D ``uint8`` array: compiled
-    (:func:`~qdcnn.vision.removal_kernels.fill_where`) unless ``QDCNN_KERNELS=numpy``."""
+    """``values[where] = value`` in place, for a 2-D ``uint8`` array and a bool mask of its
+    shape: compiled (:func:`~qdcnn.vision.removal_kernels.fill_where`, which reads the
+    mask unchecked) unless ``QDCNN_KERNELS=numpy``."""
+    if values.dtype != np.uint8 or values.ndim != 2:
+        raise InputError("values", f"expected 2-D uint8, got {values.dtype} {values.shape}")
+    if where.dtype != np.bool_ or where.shape != values.shape:
+        raise InputError("where", f"expected bool {values.shape}, got {where.dtype} {where.shape}")
+    if not 0 <= int(value) <= 255:
+        raise ParameterError("value", value, "a grey level in [0, 255]")
     kernels = compiled("removal_kernels")
     if kernels is not None:
         kernels.fill_where(values, where, value)

@@ -24,8 +24,8 @@ def lit_levels(pixels: Any, region: Any, shadow: Any, target: Any) -> Any:
     Two passes: the shadow pixels without a branch (vector code), then the counts, into
     four histograms per channel by column modulo 4, summed at the end. A road's lit pixels
     repeat a few levels, and one histogram would make each count wait on the one before
-    (250-280 -> 183-207 us on the 279-row band of a 640x480 frame, in turns in one
-    process)."""
+    (251-279 -> 184-207 us on the 279-row band of a 640x480 frame, in turns in one
+    process). The masks are bool arrays."""
     h, w, channels = pixels.shape
     shaded = 0
     for r in range(h):

@@ -686,14 +686,20 @@ def _detect_compiled(
     same block sums, decisions and mask as the NumPy path (the calibrated centroid to a
     few units in the last place), in one or two kernel calls."""
     rows, cols, area = _pixel_edges(geometry, cfg.downsample)
-    if cfg.centroid is None and model is None and cfg.median_ksize**2 <= 255:
+    calibrated = cfg.centroid is None and model is None
+    # the kernels calibrate on two classes only; other splits are calibrated with NumPy
+    in_two = cfg.calibration_classes == 2
+    if calibrated and in_two and cfg.median_ksize**2 <= 255:
         if cfg.shots is None:
             return _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
         return _detect_calibrated_shots(kernels, grey, geometry, lookup, cfg, rng)
-    if cfg.centroid is None and model is None:
-        sums, blocks, theta = kernels.calibrate_blocks(
-            grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
-        )
+    if calibrated:
+        if in_two:
+            sums, blocks, theta = kernels.calibrate_blocks(
+                grey, rows, cols, area, _half_angle_tangents(), _calibration_settings(cfg)
+            )
+        else:
+            (sums, blocks), theta = kernels.block_sums(grey, rows, cols, area), math.nan
         centroid, source = _calibrated_value(theta, blocks, cfg), "calibrated"
     else:
         centroid, source = _repeated_centroid(cfg, model)
@@ -776,9 +782,7 @@ def _detect_calibrated_shots(
             kernels, lookup, sums, centroid, cfg, u, geometry
         )
         return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
-    mask = _settled_mask(kernels, decided, unsure, (p, u, shots, limit), mask, image)
-    passed = decided.ravel().view(np.bool_)
-    scores = partial(_inverse_scores, p, u, passed, shots, limit)
+    scores, mask = _settled(kernels, decided, unsure, (p, u, shots, limit), mask, image)
     return _detection(mask, blocks, scores, centroid, cfg, "calibrated", decided)
 
 
@@ -984,44 +988,46 @@ def _compiled_shots(
     p, decided, unsure, mask = kernels.detect_shots(
         sums, amplitudes, *centroid_state, u, tables, CDF_GRID, *image
     )
-    mask = _settled_mask(kernels, decided, unsure, (p, u, shots, limit), mask, image)
-    passed = decided.ravel().view(np.bool_)
-    return partial(_inverse_scores, p, u, passed, shots, limit), decided, mask
+    scores, mask = _settled(kernels, decided, unsure, (p, u, shots, limit), mask, image)
+    return scores, decided, mask
 
 
 @lru_cache(maxsize=8)
 def _shot_tables(shots: int, threshold: float) -> tuple[tuple[NDArray[np.float64], ...], int]:
     """The fine and coarse CDF brackets the shot kernels take, and the largest passing
-    count of ones (out of ``0 .. shots - 1`` it is decided by :func:`_settled_mask`)."""
+    count of ones (out of ``0 .. shots - 1`` it is decided by :func:`_settled`)."""
     limit = _most_ones(shots, threshold)
     table_limit = min(max(limit, 0), shots - 1)  # any valid table
     return (*cdf_table(shots, table_limit)[::-1], *coarse_cdf_brackets(shots, table_limit)), limit
 
 
-def _settled_mask(
+def _settled(
     kernels: ModuleType,
     decided: NDArray[np.uint8],
     unsure: NDArray[np.intp],
     sampling: tuple[NDArray[np.float64], NDArray[np.float64], int, int],
     mask: NDArray[np.bool_],
     image: tuple[Any, ...],
-) -> NDArray[np.bool_]:
-    """Settle, in ``decided``, the blocks a shot kernel left between its CDF brackets
-    (``sampling``: their ``p``, the uniforms, shots and limit) or a limit outside the
-    tables decides; the kernel's ``mask`` holds its first guesses, so it is expanded again
-    only where a decision changed."""
+) -> tuple[Callable[[], NDArray[np.float64]], NDArray[np.bool_]]:
+    """The sampled scores (computed on first use) and the image mask of a shot kernel's
+    decisions, after settling in ``decided`` the blocks it left between its CDF brackets
+    with first guesses (``sampling``: the blocks' ``p``, the uniforms, shots and limit), or
+    deciding every block where the limit lies outside the tables (none or all pass). The
+    kernel's ``mask`` is kept when no decision changed, else the whole mask is expanded
+    again."""
     p, u, shots, limit = sampling
     passed = decided.ravel().view(np.bool_)
+    scores = partial(_inverse_scores, p, u, passed, shots, limit)
     if 0 <= limit < shots:
         if unsure.size == 0:
-            return mask
+            return scores, mask
         guess = passed.take(unsure)
         settle_between_brackets(passed, unsure, p, u, shots, limit)
         if np.array_equal(guess, passed.take(unsure)):
-            return mask
+            return scores, mask
     else:
         passed[:] = limit >= shots
-    return kernels.expand_median(decided, *image)
+    return scores, kernels.expand_median(decided, *image)
 
 
 def _simulated(
