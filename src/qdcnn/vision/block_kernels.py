@@ -102,10 +102,9 @@ def detect_calibrated(
     if np.isnan(theta):
         empty = np.empty((0, 0), np.uint8)
         return sums, means, theta, np.empty(0), empty, empty.view(np.bool_)
-    centroid = min(max(theta * settings[5], 0.0), 255.0)
-    half = centroid * settings[1] / 2.0
+    centroid, cos_c, sin_c = _centroid_state(theta, settings)
     scores, blocks, mask = detect_scores(
-        sums, amplitudes, math.cos(half), math.sin(half), threshold, row_of, col_of, ksize
+        sums, amplitudes, cos_c, sin_c, threshold, row_of, col_of, ksize
     )
     return sums, means, centroid, scores, blocks, mask
 
@@ -132,12 +131,21 @@ def detect_calibrated_shots(
     if np.isnan(theta):
         empty = np.empty((0, 0), np.uint8)
         return sums, means, theta, np.empty(0), empty, np.empty(0, np.intp), empty.view(np.bool_)
-    centroid = min(max(theta * settings[5], 0.0), 255.0)
-    half = centroid * settings[1] / 2.0
+    centroid, cos_c, sin_c = _centroid_state(theta, settings)
     p, blocks, unsure, mask = detect_shots(
-        sums, amplitudes, math.cos(half), math.sin(half), u, tables, grid, row_of, col_of, ksize
+        sums, amplitudes, cos_c, sin_c, u, tables, grid, row_of, col_of, ksize
     )
     return sums, means, centroid, p, blocks, unsure, mask
+
+
+@njit(**_JIT)
+def _centroid_state(theta: float, settings: Any) -> Any:
+    """The calibrated centroid in value units, clipped to ``[0, 255]``, and the cosine and
+    sine of its half angle (``settings[5]``: value per angle, ``settings[1]``: angle per
+    value), as the two fused detections take them."""
+    centroid = min(max(theta * settings[5], 0.0), 255.0)
+    half = centroid * settings[1] / 2.0
+    return centroid, math.cos(half), math.sin(half)
 
 
 @njit(**_JIT)
