@@ -15,8 +15,10 @@ from qdcnn.config import ShadowConfig
 from qdcnn.vision.otsu import otsu_threshold
 from qdcnn.vision.shadows import (
     BlockGrid,
+    _block_sums,
     _calibration_settings,
     _half_angle_tangents,
+    _pixel_edges,
     binary_median,
     block_grid,
     calibrate_centroid,
@@ -90,6 +92,83 @@ def test_both_row_expansions_give_the_numpy_mask(
     geometry = block_grid(size[::-1], downsample, 79)
     assert kernels._in_groups_of_four(geometry.col_of) is by_four
     _assert_expand_median_is_the_numpy_mask(geometry, ksize, seed=ksize)
+
+
+def _assert_block_sums_are_the_numpy_sums(grey: np.ndarray, downsample: int, grid: int) -> None:
+    geometry = block_grid(grey.shape, downsample, grid)
+    rows, cols, area = _pixel_edges(geometry, downsample)
+    sums, means = kernels.block_sums(grey, rows, cols, area)
+    expected, expected_area = _block_sums(np.ascontiguousarray(grey), geometry, downsample)
+    np.testing.assert_array_equal(sums.ravel(), expected)
+    np.testing.assert_array_equal(means.ravel(), expected / expected_area)
+
+
+@pytest.mark.parametrize(
+    ("size", "downsample", "grid", "layout", "by_word"),
+    [
+        ((160, 320), 4, 79, "contiguous", True),  # one block two words wide
+        ((720, 1280), 4, 79, "contiguous", True),
+        ((160, 321), 4, 79, "contiguous", False),  # rows not whole words
+        ((160, 320), 2, 79, "contiguous", False),  # edges between words
+        ((600, 320), 4, 2, "contiguous", False),  # blocks 300 rows tall: 16-bit lanes overflow
+        ((160, 320), 4, 79, "strided rows", True),  # a crop of a wider frame
+        ((160, 320), 4, 79, "unaligned", False),
+        ((160, 320), 4, 79, "strided columns", False),
+    ],
+)
+def test_both_block_sums_give_the_numpy_sums(
+    size: tuple[int, int], downsample: int, grid: int, layout: str, by_word: bool
+) -> None:
+    """The blocks are summed from 32-bit words where the rows and column edges allow it,
+    and pixel by pixel elsewhere: both give the summed-area table's sums."""
+    h, w = size
+    frame = np.random.default_rng(h + w).integers(0, 256, (h, 2 * w + 4), dtype=np.uint8)
+    grey = {
+        "contiguous": np.ascontiguousarray(frame[:, :w]),
+        "strided rows": frame[:, 4 : w + 4],
+        "unaligned": frame[:, 1 : w + 1],
+        "strided columns": frame[:, : 2 * w : 2],
+    }[layout]
+    geometry = block_grid(grey.shape, downsample, grid)
+    rows, cols, _ = _pixel_edges(geometry, downsample)
+    assert kernels._in_words(grey, rows, cols) is by_word
+    _assert_block_sums_are_the_numpy_sums(grey, downsample, grid)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    h=st.integers(4, 300),
+    w=st.integers(1, 100).map(lambda k: 4 * k),
+    downsample=st.sampled_from([1, 2, 4, 8]),
+    grid=st.sampled_from([79, 23, 5, 1]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_block_sums_are_the_numpy_sums(
+    h: int, w: int, downsample: int, grid: int, seed: int
+) -> None:
+    if min(h, w) < downsample:
+        return
+    grey = np.random.default_rng(seed).integers(0, 256, (h, w), dtype=np.uint8)
+    _assert_block_sums_are_the_numpy_sums(grey, downsample, grid)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 7, 8, 3160])
+def test_the_value_range_is_numpys(n: int, rng: np.random.Generator) -> None:
+    for _ in range(20):
+        values = rng.uniform(-1e3, 1e3, n)
+        assert kernels._value_range(values) == (values.min(), values.max())
+
+
+@pytest.mark.parametrize("bin_width", [0.25, 0.5, 2.0, 0.3, 1 / 3])
+def test_the_calibration_levels_are_the_rounded_quotients(
+    bin_width: float, rng: np.random.Generator
+) -> None:
+    """Powers of two are multiplied by their inverse, other widths divide: both give
+    ``rint(values / width)``, ties and halves included."""
+    values = np.concatenate([rng.uniform(0, 255, 3000), np.arange(0, 255, bin_width / 2)])
+    np.testing.assert_array_equal(
+        kernels._levels(values, bin_width), np.rint(values / bin_width).astype(np.intp)
+    )
 
 
 @settings(max_examples=150, deadline=None)

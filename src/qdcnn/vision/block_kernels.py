@@ -38,7 +38,36 @@ _JIT: dict[str, Any] = {"cache": True, "nogil": True, "boundscheck": False}
 def block_sums(grey: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
     """Pixel sum and mean of each block of a ``uint8`` image; blocks span
     ``row_edges[i]:row_edges[i + 1]`` by ``col_edges[j]:col_edges[j + 1]`` (pixels) and
-    hold ``area[i, j]`` pixels."""
+    hold ``area[i, j]`` pixels. Where every column edge falls on a group of four pixels
+    (the default downsampling, 4) the rows are read as 32-bit words
+    (:func:`_block_sums_by_word`); else pixel by pixel."""
+    if _in_words(grey, row_edges, col_edges):
+        sums = _block_sums_by_word(grey.view(np.uint32), row_edges, col_edges)
+    else:
+        sums = _block_sums_by_pixel(grey, row_edges, col_edges)
+    return sums, sums / area
+
+
+@njit(**_JIT)
+def _in_words(grey: Any, row_edges: Any, col_edges: Any) -> bool:
+    """Whether :func:`_block_sums_by_word` can sum these blocks: rows of aligned 4-pixel
+    words, column edges on word boundaries, and blocks at most 128 rows tall (each 16-bit
+    lane of a word's accumulator adds two pixels a row, at most 510)."""
+    if grey.shape[1] % 4 or grey.strides[1] != 1 or grey.strides[0] % 4 or grey.ctypes.data % 4:
+        return False
+    for j in range(col_edges.size):
+        if col_edges[j] % 4:
+            return False
+    for i in range(row_edges.size - 1):
+        if row_edges[i + 1] - row_edges[i] > 128:
+            return False
+    return True
+
+
+@njit(**_JIT)
+def _block_sums_by_pixel(grey: Any, row_edges: Any, col_edges: Any) -> Any:
+    """:func:`block_sums`' sums: each block row's pixel columns summed, then a prefix sum
+    along the row and its differences at the column edges."""
     gh, gw = row_edges.size - 1, col_edges.size - 1
     width = grey.shape[1]
     sums = np.empty((gh, gw), np.int64)
@@ -56,7 +85,53 @@ def block_sums(grey: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
             prefix[c + 1] = total
         for j in range(gw):
             sums[i, j] = prefix[col_edges[j + 1]] - prefix[col_edges[j]]
-    return sums, sums / area
+    return sums
+
+
+@njit(**_JIT)
+def _block_sums_by_word(words: Any, row_edges: Any, col_edges: Any) -> Any:
+    """:func:`block_sums`' sums from rows read as 32-bit words of four pixels. Each word's
+    bytes are added in pairs (two 16-bit lanes, masks and a shift the compiler
+    vectorises), the lanes of a block row's words give its 4-pixel column sums, and each
+    block is the column sum of its first word plus those of any further words. The prefix
+    sum along every pixel row and its differences cost 7 of 11 us at 320x160, a chain of
+    dependent adds and a gather per block that stayed scalar; here 5.9 us."""
+    gh, gw = row_edges.size - 1, col_edges.size - 1
+    first, extra_block, extra_word = _words_of_blocks(col_edges)
+    sums = np.empty((gh, gw), np.int64)
+    lanes = np.empty(words.shape[1], np.uint32)
+    quads = np.empty(words.shape[1], np.int64)
+    for i in range(gh):
+        lanes[:] = 0
+        for r in range(row_edges[i], row_edges[i + 1]):
+            for c in range(lanes.size):
+                w = words[r, c]
+                lanes[c] += (w & 0x00FF00FF) + ((w >> 8) & 0x00FF00FF)
+        for c in range(lanes.size):
+            quads[c] = (lanes[c] & 0xFFFF) + (lanes[c] >> 16)
+        row = sums[i]
+        for j in range(gw):
+            row[j] = quads[first[j]]
+        for k in range(extra_block.size):
+            row[extra_block[k]] += quads[extra_word[k]]
+    return sums
+
+
+@njit(**_JIT)
+def _words_of_blocks(col_edges: Any) -> Any:
+    """Each block's first word, and (block, word) for every further word of a block wider
+    than four pixels."""
+    gw = col_edges.size - 1
+    first = col_edges[:-1] >> 2
+    n_extra = (col_edges[-1] - col_edges[0]) // 4 - gw
+    extra_block = np.empty(n_extra, np.intp)
+    extra_word = np.empty(n_extra, np.intp)
+    k = 0
+    for j in range(gw):
+        for m in range(first[j] + 1, col_edges[j + 1] >> 2):
+            extra_block[k], extra_word[k] = j, m
+            k += 1
+    return first, extra_block, extra_word
 
 
 @njit(**_JIT)
@@ -426,13 +501,16 @@ def _pairwise_block(a: Any, lo: int, n: int) -> float:
         for i in range(lo, lo + n):
             res += a[i]
         return res
-    r = a[lo : lo + 8].copy()
+    # eight scalars, not an array of eight: no allocation per block (18 at 320x160)
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
     i = 8
     while i < n - n % 8:
-        for j in range(8):
-            r[j] += a[lo + i + j]
+        j = lo + i
+        r0, r1, r2, r3 = r0 + a[j], r1 + a[j + 1], r2 + a[j + 2], r3 + a[j + 3]
+        r4, r5, r6, r7 = r4 + a[j + 4], r5 + a[j + 5], r6 + a[j + 6], r7 + a[j + 7]
         i += 8
-    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     for k in range(lo + i, lo + n):
         res += a[k]
     return res
@@ -468,6 +546,40 @@ def _pairwise_sum(a: Any, lo: int, n: int) -> float:
         half = sizes[top] // 2 - (sizes[top] // 2) % 8
         starts[top + 1], sizes[top + 1], stage[top + 1] = starts[top] + half, sizes[top] - half, 0
         top += 1
+
+
+@njit(**_JIT)
+def _value_range(values: Any) -> Any:
+    """The smallest and largest of ``values`` (not NaN), in four running pairs: one pair
+    is a chain of dependent comparisons (2.2 against 1.1 us for 3,160 values)."""
+    lo0 = lo1 = lo2 = lo3 = hi0 = hi1 = hi2 = hi3 = values[0]
+    n4 = values.size - values.size % 4
+    for t in range(0, n4, 4):
+        v0, v1, v2, v3 = values[t], values[t + 1], values[t + 2], values[t + 3]
+        lo0, hi0 = (v0 if v0 < lo0 else lo0), (v0 if v0 > hi0 else hi0)
+        lo1, hi1 = (v1 if v1 < lo1 else lo1), (v1 if v1 > hi1 else hi1)
+        lo2, hi2 = (v2 if v2 < lo2 else lo2), (v2 if v2 > hi2 else hi2)
+        lo3, hi3 = (v3 if v3 < lo3 else lo3), (v3 if v3 > hi3 else hi3)
+    first, last = min(min(lo0, lo1), min(lo2, lo3)), max(max(hi0, hi1), max(hi2, hi3))
+    for t in range(n4, values.size):
+        first, last = min(first, values[t]), max(last, values[t])
+    return first, last
+
+
+@njit(**_JIT)
+def _levels(values: Any, bin_width: float) -> Any:
+    """``rint(values / bin_width)``. A power-of-two width divides exactly as a product
+    with its inverse, which the compiler vectorises better (the calibration's width,
+    0.25); any other divides."""
+    level = np.empty(values.size, np.intp)
+    if math.frexp(bin_width)[0] == 0.5:
+        per_bin = 1.0 / bin_width
+        for t in range(values.size):  # vectorised: no branch
+            level[t] = int(np.rint(values[t] * per_bin))
+    else:
+        for t in range(values.size):
+            level[t] = int(np.rint(values[t] / bin_width))
+    return level
 
 
 @njit(**_JIT)
@@ -576,16 +688,9 @@ def calibrate(
     NaN where the fixed point has no answer (the caller then runs the NumPy calibration
     and its propagation). ``tan_table[k]`` is the tangent of half the angle of level
     ``k`` (value ``k * bin_width``)."""
-    first, last = values[0], values[0]
-    for v in values:
-        if v < first:
-            first = v
-        elif v > last:
-            last = v
+    first, last = _value_range(values)
     cut = otsu_threshold(values, 256, first, last) if first < last else last
-    level = np.empty(values.size, np.intp)
-    for t in range(values.size):  # vectorised: no branch
-        level[t] = int(np.rint(values[t] / bin_width))
+    level = _levels(values, bin_width)
     cluster = np.empty(values.size, np.float64)
     counts = np.zeros(int(np.rint(last / bin_width)) + 1, np.intp)
     n = 0
