@@ -63,3 +63,22 @@ def test_another_setting_is_named_in_the_error(monkeypatch: pytest.MonkeyPatch) 
     with pytest.raises(ParameterError) as err:
         compiled("block_kernels")
     assert str(err.value) == "QDCNN_KERNELS='off' is invalid: 'numba' or 'numpy'"
+
+
+@pytest.mark.parametrize("mapping", ["os.environ", "a plain mapping"])
+@pytest.mark.parametrize("value", [None, "numpy", "numba"])
+def test_the_setting_is_read_on_every_call(
+    monkeypatch: pytest.MonkeyPatch, mapping: str, value: str | None
+) -> None:
+    """The choice follows the variable as it is now, whether read from CPython's mapping
+    behind ``os.environ`` or (where an ``os.environ`` has none) through ``get``."""
+    import os
+
+    if mapping == "a plain mapping":
+        monkeypatch.setattr(os, "environ", dict(os.environ))
+    if value is None:
+        monkeypatch.delitem(os.environ, KERNELS_VARIABLE, raising=False)
+    else:
+        monkeypatch.setitem(os.environ, KERNELS_VARIABLE, value)
+    assert compiled_module._environment_choice() == (value or "numba")
+    assert (compiled("block_kernels") is None) is (value == "numpy")

@@ -157,6 +157,23 @@ def test_state_table_path_equals_the_cosine_path(
     np.testing.assert_array_equal(table.mask, cosine.mask)
 
 
+def test_the_last_state_lookup_is_reused_until_its_grid_is_rebuilt() -> None:
+    """A frame of the last frame's grid gets the same lookup (no new tables or objects);
+    another grid gets its own, and a grid whose cache was cleared a new one."""
+    geometry = block_grid((160, 320), 4, 79)
+    first = state_lookup(geometry, 320, 4)
+    assert first is not None and state_lookup(geometry, 320, 4) is first
+    other = state_lookup(block_grid((120, 200), 4, 79), 200, 4)
+    assert other is not None and other.offsets.size != first.offsets.size
+    again = state_lookup(geometry, 320, 4)
+    assert again is not None and again is not first  # one lookup kept: the memory stays bounded
+    np.testing.assert_array_equal(again.offsets, first.offsets)
+    geometry.state_cache.clear()
+    rebuilt = state_lookup(geometry, 320, 4)
+    assert rebuilt is not None and rebuilt is not again
+    np.testing.assert_array_equal(rebuilt.cos_half, first.cos_half)
+
+
 def test_state_tables_are_skipped_for_very_large_blocks() -> None:
     geometry = block_grid((3000, 4000), 4, 79)  # blocks of about 38 x 50 pixels
     assert state_lookup(geometry, 4000, 4) is None

@@ -273,28 +273,40 @@ def state_lookup(geometry: BlockGrid, width: int, downsample: int) -> StateLooku
     """
     key = (width, downsample)
     if key not in geometry.state_cache:
-        _, area = _cached_corners(geometry, width, downsample)
-        sizes, inverse = np.unique(area.astype(np.intp), return_inverse=True)
-        lengths = int(VALUE_SCALE) * sizes + 1
-        entry = None
-        if int(lengths.sum()) <= MAX_STATE_TABLE:
-            starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.intp)
-            offsets = starts[inverse.ravel()]
-            offsets.setflags(write=False)
-            size_index = inverse.ravel().astype(np.intp)
-            size_index.setflags(write=False)
-            entry = (
-                tuple(int(n) for n in sizes),
-                offsets,
-                tuple(int(i) for i in starts),
-                size_index,
-            )
-        geometry.state_cache[key] = entry
+        geometry.state_cache[key] = _state_entry(geometry, width, downsample)
     entry = geometry.state_cache[key]
+    recent = _RECENT_LOOKUP.get("entry")
+    if recent is not None and recent[0] is entry:  # the last frame's grid: 1 us a frame less
+        return recent[1]
     if entry is None:
         return None
     cos_half, sin_half = joined_state_tables(entry[0])
-    return StateLookup(entry[1], cos_half, sin_half, entry[0], entry[2], entry[3])
+    lookup = StateLookup(entry[1], cos_half, sin_half, entry[0], entry[2], entry[3])
+    _RECENT_LOOKUP["entry"] = (entry, lookup)
+    return lookup
+
+
+def _state_entry(
+    geometry: BlockGrid, width: int, downsample: int
+) -> tuple[tuple[int, ...], NDArray[np.intp], tuple[int, ...], NDArray[np.intp]] | None:
+    """The grid's block sizes, per-block table offsets, table starts and size indices;
+    None where the joined tables would be larger than :data:`MAX_STATE_TABLE`."""
+    _, area = _cached_corners(geometry, width, downsample)
+    sizes, inverse = np.unique(area.astype(np.intp), return_inverse=True)
+    lengths = int(VALUE_SCALE) * sizes + 1
+    if int(lengths.sum()) > MAX_STATE_TABLE:
+        return None
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.intp)
+    offsets = starts[inverse.ravel()]
+    offsets.setflags(write=False)
+    size_index = inverse.ravel().astype(np.intp)
+    size_index.setflags(write=False)
+    return tuple(int(n) for n in sizes), offsets, tuple(int(i) for i in starts), size_index
+
+
+#: the last lookup built and the grid's cache entry it came from: one, so that the tables
+#: it holds stay bounded
+_RECENT_LOOKUP: dict[str, tuple[object, StateLookup]] = {}
 
 
 def expand_blocks(block_mask: NDArray[np.bool_], geometry: BlockGrid) -> NDArray[np.bool_]:
@@ -900,15 +912,20 @@ def _pixel_edges(
     return cached
 
 
-@lru_cache(maxsize=8)
 def _calibration_settings(cfg: ShadowConfig) -> NDArray[np.float64]:
-    """The numbers :func:`block_kernels.calibrate` takes besides the values and tables."""
+    """The numbers :func:`block_kernels.calibrate` takes besides the values and tables
+    (cached by the two settings they hold: hashing the whole config costs 0.6 us a frame)."""
+    return _calibration_numbers(cfg.propagation_iterations, cfg.propagation_tol)
+
+
+@lru_cache(maxsize=8)
+def _calibration_numbers(iterations: int, tol: float) -> NDArray[np.float64]:
     settings = np.array(
         [
             _CALIBRATION_BIN,
             np.pi / VALUE_SCALE,
-            cfg.propagation_iterations,
-            cfg.propagation_tol,
+            iterations,
+            tol,
             MAX_FAST_SPREAD,
             VALUE_SCALE / np.pi,
         ]
