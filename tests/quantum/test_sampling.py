@@ -210,6 +210,28 @@ def test_binomial_at_most_is_u_below_the_binomial_cdf(rng: np.random.Generator) 
     assert binomial_at_most(p, 1024, 1024, u).all()
 
 
+def test_settling_decides_by_the_cdf_and_says_whether_a_decision_changed(
+    rng: np.random.Generator,
+) -> None:
+    """The circuits between the brackets get ``u <= F(limit; p)`` (``p`` clipped to
+    ``[0, 1]``, as a score a rounding above 1 gives); the answer is whether any of their
+    decisions in ``passed`` changed, and the others are left alone."""
+    from scipy.special import bdtr
+
+    p = np.concatenate([rng.uniform(0.0, 0.06, 20), [-1e-16, 1.0 + 1e-16]])
+    u = rng.random(p.size)
+    truth = u <= bdtr(40, 1024, np.clip(p, 0.0, 1.0))
+    unsure = np.array([0, 3, 7, 20, 21])
+    others = np.setdiff1d(np.arange(p.size), unsure)
+    for start in (truth.copy(), ~truth):
+        passed = start.copy()
+        changed = sampling.settle_between_brackets(passed, unsure, p, u, 1024, 40)
+        np.testing.assert_array_equal(passed[unsure], truth[unsure])
+        np.testing.assert_array_equal(passed[others], start[others])
+        assert changed is not np.array_equal(start[unsure], truth[unsure])
+    assert sampling.settle_between_brackets(passed, unsure[:0], p, u, 1024, 40) is False
+
+
 @pytest.mark.parametrize("p", [0.0, 2e-4, 0.03, 0.37, 0.5, 0.9993, 1.0])
 def test_inverse_binomial_follows_the_binomial_distribution(p: float) -> None:
     from scipy.stats import binom, chisquare

@@ -45,7 +45,26 @@ def block_sums(grey: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
         sums = _block_sums_by_word(grey.view(np.uint32), row_edges, col_edges)
     else:
         sums = _block_sums_by_pixel(grey, row_edges, col_edges)
-    return sums, sums / area
+    return sums, _means(sums, row_edges, col_edges, area)
+
+
+@njit(**_JIT)
+def _means(sums: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
+    """``sums / area``. Where every block's height and width are powers of two (the
+    default geometry at 320x160) each sum is multiplied by its block's inverse area
+    instead, the same number exactly and a quarter of the time of 3,160 divisions."""
+    heights, widths = np.diff(row_edges), np.diff(col_edges)
+    for extent in (heights, widths):
+        for k in range(extent.size):
+            if extent[k] & (extent[k] - 1):
+                return sums / area
+    means = np.empty(sums.shape, np.float64)
+    inverse_widths = 1.0 / widths
+    for i in range(sums.shape[0]):
+        inverse_height = 1.0 / heights[i]
+        for j in range(sums.shape[1]):
+            means[i, j] = sums[i, j] * (inverse_height * inverse_widths[j])
+    return means
 
 
 @njit(**_JIT)

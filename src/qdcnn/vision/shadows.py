@@ -1036,11 +1036,7 @@ def _settled(
     passed = decided.ravel().view(np.bool_)
     scores = partial(_inverse_scores, p, u, passed, shots, limit)
     if 0 <= limit < shots:
-        if unsure.size == 0:
-            return scores, mask
-        guess = passed.take(unsure)
-        settle_between_brackets(passed, unsure, p, u, shots, limit)
-        if np.array_equal(guess, passed.take(unsure)):
+        if not settle_between_brackets(passed, unsure, p, u, shots, limit):
             return scores, mask
     else:
         passed[:] = limit >= shots
