@@ -388,13 +388,17 @@ def shot_mask(
     bracket in them, a few kilobytes): most blocks are settled by the coarse ones, so few
     reads go to the megabyte of fine tables."""
     lower, upper, low, high = tables
-    p = 1.0 - _scores(sums, offsets, cos_half, sin_half, cos_c, sin_c)
+    p = _scores(sums, offsets, cos_half, sin_half, cos_c, sin_c)
+    cells = np.empty(p.size, np.int32)
+    for b in range(p.size):  # the grid cells first, a loop the compiler vectorises
+        p[b] = 1.0 - p[b]
+        cells[b] = min(max(int(p[b] * grid), 0), grid)
     passed = np.empty(p.size, np.bool_)
     unsure = np.empty(p.size, np.intp)
     n_unsure = 0
     shift = int(math.log2(grid // (low.size - 1)))
     for b in range(p.size):
-        cell = min(max(int(p[b] * grid), 0), grid)
+        cell = cells[b]
         coarse = cell >> shift
         if u[b] <= low[coarse] or u[b] > high[coarse]:
             passed[b] = u[b] <= low[coarse]
