@@ -697,14 +697,15 @@ def _detect_compiled(
     """:func:`detect_shadows_uu` on ``uint8`` intensity with the compiled kernels: the
     same block sums, decisions and mask as the NumPy path (the calibrated centroid to a
     few units in the last place), in one or two kernel calls."""
-    rows, cols, area = _pixel_edges(geometry, cfg.downsample)
+    edges = _pixel_edges(geometry, cfg.downsample)
+    rows, cols, area = edges
     calibrated = cfg.centroid is None and model is None
     # the kernels calibrate on two classes only; other splits are calibrated with NumPy
     in_two = cfg.calibration_classes == 2
     if calibrated and in_two and cfg.median_ksize**2 <= 255:
         if cfg.shots is None:
-            return _detect_calibrated(kernels, grey, (rows, cols, area), geometry, lookup, cfg)
-        return _detect_calibrated_shots(kernels, grey, geometry, lookup, cfg, rng)
+            return _detect_calibrated(kernels, grey, edges, geometry, lookup, cfg)
+        return _detect_calibrated_shots(kernels, grey, edges, geometry, lookup, cfg, rng)
     if calibrated:
         if in_two:
             sums, blocks, theta = kernels.calibrate_blocks(
@@ -764,6 +765,7 @@ def _detect_calibrated(
 def _detect_calibrated_shots(
     kernels: ModuleType,
     grey: NDArray[Any],
+    edges: tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]],
     geometry: BlockGrid,
     lookup: StateLookup,
     cfg: ShadowConfig,
@@ -772,7 +774,6 @@ def _detect_calibrated_shots(
     """:func:`_detect_calibrated` with shots, in one kernel call
     (:func:`block_kernels.detect_calibrated_shots`): the uniforms, brackets and decisions
     of :func:`sampled_decisions`."""
-    edges = _pixel_edges(geometry, cfg.downsample)
     shots = int(cfg.shots or 0)
     tables, limit = _shot_tables(shots, cfg.threshold)
     u = as_generator(rng).random(int(edges[2].size))
