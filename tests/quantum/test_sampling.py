@@ -228,7 +228,8 @@ def test_settling_decides_by_the_cdf_and_says_whether_a_decision_changed(
         changed = sampling.settle_between_brackets(passed, unsure, p, u, 1024, 40)
         np.testing.assert_array_equal(passed[unsure], truth[unsure])
         np.testing.assert_array_equal(passed[others], start[others])
-        assert changed is not np.array_equal(start[unsure], truth[unsure])
+        assert isinstance(changed, bool)
+        assert changed == (not np.array_equal(start[unsure], truth[unsure]))
     assert sampling.settle_between_brackets(passed, unsure[:0], p, u, 1024, 40) is False
 
 

@@ -135,6 +135,34 @@ def test_both_block_sums_give_the_numpy_sums(
     _assert_block_sums_are_the_numpy_sums(grey, downsample, grid)
 
 
+@pytest.mark.parametrize(("height", "by_word"), [(128, True), (129, False)])
+def test_saturated_blocks_at_the_lanes_limit(height: int, by_word: bool) -> None:
+    """White blocks 128 rows tall fill a word's 16-bit lanes to 65,280 (the word path);
+    one row more would overflow them and takes the pixel path."""
+    grey = np.full((height, 64), 255, np.uint8)
+    rows, cols = np.array([0, height]), np.array([0, 4, 16, 64])
+    area = np.outer(np.diff(rows), np.diff(cols)).astype(np.float64)
+    assert kernels._in_words(grey, rows, cols) is by_word
+    sums, means = kernels.block_sums(grey, rows, cols, area)
+    np.testing.assert_array_equal(sums, 255 * area)
+    np.testing.assert_array_equal(means, np.full(area.shape, 255.0))
+
+
+def test_blocks_without_columns_take_the_pixel_path() -> None:
+    """Column edges that do not increase (an empty block, which no grid makes) are summed
+    pixel by pixel: 0 for the empty block."""
+    grey = np.random.default_rng(1).integers(0, 256, (64, 64), dtype=np.uint8)
+    rows, cols = np.array([0, 32, 64]), np.array([0, 16, 16, 64])
+    area = np.outer(np.diff(rows), np.diff(cols)).astype(np.float64)
+    assert not kernels._in_words(grey, rows, cols)
+    sums, _ = kernels.block_sums(grey, rows, cols, area)
+    expected = [
+        [grey[r0:r1, c0:c1].sum(dtype=np.int64) for c0, c1 in ((0, 16), (16, 16), (16, 64))]
+        for r0, r1 in ((0, 32), (32, 64))
+    ]
+    np.testing.assert_array_equal(sums, expected)
+
+
 @settings(max_examples=100, deadline=None)
 @given(
     h=st.integers(4, 300),

@@ -305,7 +305,7 @@ def settle_between_brackets(
     changed = False
     for b in unsure.tolist():
         decision = bool(u[b] <= bdtr(limit, shots, min(max(float(p[b]), 0.0), 1.0)))
-        changed |= decision != passed[b]
+        changed |= decision != bool(passed[b])
         passed[b] = decision
     return changed
 

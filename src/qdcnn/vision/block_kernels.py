@@ -69,13 +69,14 @@ def _means(sums: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
 
 @njit(**_JIT)
 def _in_words(grey: Any, row_edges: Any, col_edges: Any) -> bool:
-    """Whether :func:`_block_sums_by_word` can sum these blocks: rows of aligned 4-pixel
-    words, column edges on word boundaries, and blocks at most 128 rows tall (each 16-bit
-    lane of a word's accumulator adds two pixels a row, at most 510)."""
+    """Whether :func:`_block_sums_by_word` can sum these blocks of a ``uint8`` image (its
+    bytes are read as unsigned): rows of aligned 4-pixel words, increasing column edges on
+    word boundaries, and blocks at most 128 rows tall (each 16-bit lane of a word's
+    accumulator adds two pixels a row, at most 510)."""
     if grey.shape[1] % 4 or grey.strides[1] != 1 or grey.strides[0] % 4 or grey.ctypes.data % 4:
         return False
     for j in range(col_edges.size):
-        if col_edges[j] % 4:
+        if col_edges[j] % 4 or (j and col_edges[j] <= col_edges[j - 1]):
             return False
     for i in range(row_edges.size - 1):
         if row_edges[i + 1] - row_edges[i] > 128:

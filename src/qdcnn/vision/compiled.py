@@ -40,13 +40,11 @@ def _environment_choice() -> str:
     KeyErrors (0.9 us, a frame's detection calls it once); CPython's mapping behind
     ``os.environ`` is read directly where it has one."""
     data = getattr(os.environ, "_data", None)
-    if data is None:
+    encodekey = getattr(os.environ, "encodekey", None)
+    if data is None or encodekey is None:
         return os.environ.get(KERNELS_VARIABLE, "numba")
-    value = data.get(_ENVIRON_KEY)
-    return "numba" if value is None else os.environ.decodevalue(value)
-
-
-_ENVIRON_KEY = os.environ.encodekey(KERNELS_VARIABLE)
+    value = data.get(encodekey(KERNELS_VARIABLE))
+    return "numba" if value is None else str(os.environ.decodevalue(value))
 
 
 @cache
