@@ -50,9 +50,10 @@ def block_sums(grey: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
 
 @njit(**_JIT)
 def _means(sums: Any, row_edges: Any, col_edges: Any, area: Any) -> Any:
-    """``sums / area``. Where every block's height and width are powers of two (the
-    default geometry at 320x160) each sum is multiplied by its block's inverse area
-    instead, the same number exactly and a quarter of the time of 3,160 divisions."""
+    """``sums / area``, ``area`` being each block's height times its width (as the edges
+    give them). Where every block's height and width are powers of two (the default
+    geometry at 320x160) each sum is multiplied by its block's inverse area instead, the
+    same number exactly and a quarter of the time of 3,160 divisions."""
     heights, widths = np.diff(row_edges), np.diff(col_edges)
     for extent in (heights, widths):
         for k in range(extent.size):
