@@ -38,7 +38,6 @@ from in_turns import main, measured
 def _frame_inputs(image: Any, cfg: Any) -> dict[str, Any]:
     """What the detector's kernels take for one frame, as the detector builds it."""
     import cv2
-    import numpy as np
 
     from qdcnn.vision import shadows
 
@@ -53,7 +52,7 @@ def _frame_inputs(image: Any, cfg: Any) -> dict[str, Any]:
         "grey": grey,
         "edges": edges,
         "means": exact.block_values.ravel().copy(),
-        "sums": (exact.block_values * edges[2]).round().astype(np.int64),
+        "sums": shadows.compiled_kernels().block_sums(grey, *edges)[0],
         "decided": exact.block_mask.view("uint8"),
         "centroid": (math.cos(half), math.sin(half)),
         "amplitudes": (lookup.offsets, lookup.cos_half, lookup.sin_half),
