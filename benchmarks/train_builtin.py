@@ -127,12 +127,12 @@ class Part:
     labels: np.ndarray
 
 
-def load_sets(root: Path) -> dict[str, Any]:
+def load_sets(root: Path, synthetic: tuple[str, ...] = SYNTHETIC) -> dict[str, Any]:
     """Every recording and synthetic preset as a FrameSet, by name."""
     from qdcnn.data.frames import load_frameset
 
     specs = [f"udacity:{root / name}{suffix}" for name, (suffix, _) in RECORDINGS.items()]
-    sets = [load_frameset(s, seed=SEED) for s in (*specs, *SYNTHETIC)]
+    sets = [load_frameset(s, seed=SEED) for s in (*specs, *synthetic)]
     return {fs.name: fs for fs in sets}
 
 
@@ -199,8 +199,11 @@ def _subset(fs: Any, index: np.ndarray) -> Any:
 
 
 #: Options of a recipe variant (``--colour-augment``, ``--plain-frames``, ``--edge-frames``,
-#: ``--with-edges``, ``--max-shift``, ``--ensemble``, ``--tta``); empty: the recipe.
+#: ``--with-edges``, ``--max-shift``, ``--ensemble``, ``--tta``, ``--synthetic``); empty: the
+#: recipe.
 VARIANT: dict[str, Any] = {}
+#: Variant keys that choose the training data, not the estimator.
+DATA_KEYS = ("synthetic",)
 
 
 def training_options() -> Any:
@@ -221,7 +224,7 @@ def training_options() -> Any:
 
 def _params(fronts: tuple[str, ...]) -> dict[str, Any]:
     """The estimator parameters of the recipe and its variant (the fronts are options)."""
-    params = {k: v for k, v in VARIANT.items() if k not in fronts}
+    params = {k: v for k, v in VARIANT.items() if k not in (*fronts, *DATA_KEYS)}
     networks = int(params.pop("ensemble", ENSEMBLE))
     return {**params, "ensemble": networks} if networks > 1 else params
 
@@ -461,6 +464,11 @@ def _parser() -> argparse.ArgumentParser:
         help="the variant that averages each frame's and its mirror image's probabilities",
     )
     parser.add_argument(
+        "--synthetic",
+        default=",".join(s.removeprefix("synthetic:") for s in SYNTHETIC),
+        help="the synthetic drives trained on, PRESET:N separated by commas; others: a variant",
+    )
+    parser.add_argument(
         "--no-final",
         action="store_true",
         help="score the left-out recordings only: no final training, no model file",
@@ -470,6 +478,21 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def synthetic_specs(parser: argparse.ArgumentParser, text: str) -> tuple[str, ...]:
+    """``--synthetic``'s drives as data specs (``synthetic:PRESET:N``), checked."""
+    from qdcnn.data.synthetic_presets import PRESETS
+
+    specs = tuple(f"synthetic:{item.strip()}" for item in text.split(",") if item.strip())
+    for spec in specs:
+        preset, _, count = spec.removeprefix("synthetic:").partition(":")
+        if preset not in PRESETS or not count.isdigit():
+            parser.error(f"--synthetic {text!r}: give PRESET:N items, a preset in {PRESETS}")
+    presets = [spec.split(":")[1] for spec in specs]
+    if len(set(presets)) < len(presets):
+        parser.error(f"--synthetic {text!r}: each preset once")
+    return specs
+
+
 def main() -> None:
     parser = _parser()
     args = parser.parse_args()
@@ -477,6 +500,9 @@ def main() -> None:
     for option in ("colour_augment", "max_shift", "tta"):
         if getattr(args, option):
             VARIANT[option] = getattr(args, option)
+    synthetic = synthetic_specs(parser, args.synthetic)
+    if synthetic != SYNTHETIC:
+        VARIANT["synthetic"] = list(synthetic)
     if args.skip_final and args.no_final:
         parser.error("--skip-final and --no-final: give one of them")
     fronts = [f for f in ("plain_frames", "edge_frames", "with_edges") if getattr(args, f)]
@@ -508,7 +534,7 @@ def main() -> None:
 
     torch.set_num_threads(THREADS)
     os.environ.setdefault("OMP_NUM_THREADS", str(THREADS))
-    sets = load_sets(args.data_root)
+    sets = load_sets(args.data_root, synthetic)
     loo: dict[str, list[dict[str, Any]]] = {}
     model: Any = None
     info: dict[str, Any] = {}

@@ -73,6 +73,24 @@ def test_paired_difference_of_files_scored_with_several_seeds(
             "a recipe variant: give --model and --results (not the shipped files)",
         ),
         (["--tta"], "a recipe variant: give --model and --results (not the shipped files)"),
+        (
+            ["--synthetic", "track1:150,dashcam:150"],
+            "a recipe variant: give --model and --results (not the shipped files)",
+        ),
+        (
+            ["--synthetic", "track9:150"],
+            "--synthetic 'track9:150': give PRESET:N items, a preset in "
+            "('track1', 'track2', 'rain', 'dashcam')",
+        ),
+        (
+            ["--synthetic", "track1"],
+            "--synthetic 'track1': give PRESET:N items, a preset in "
+            "('track1', 'track2', 'rain', 'dashcam')",
+        ),
+        (
+            ["--synthetic", "rain:10,rain:20"],
+            "--synthetic 'rain:10,rain:20': each preset once",
+        ),
     ],
 )
 def test_train_builtin_refuses_to_overwrite_the_shipped_scores(
@@ -135,16 +153,46 @@ def test_a_variant_scored_without_a_final_model_needs_only_its_results_path(
     assert train.VARIANT == {"standardise_frames": False, "edge_frames": True}
 
 
-def _run_to_the_data(train: Any, argv: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_synthetic_variant_chooses_the_data_not_the_estimator(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    _, train = scripts
+    argv = ["--synthetic", "track1:150, dashcam:40", "--no-final"]
+    loaded = _run_to_the_data(train, [*argv, "--results", str(tmp_path / "r.json")], monkeypatch)
+    assert loaded == ("synthetic:track1:150", "synthetic:dashcam:40")
+    assert train.VARIANT == {"synthetic": ["synthetic:track1:150", "synthetic:dashcam:40"]}
+    assert train.training_options().params == {}
+
+
+def test_the_recipe_trains_on_its_own_synthetic_drives(
+    scripts: tuple[Any, Any], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    _, train = scripts
+    loaded = _run_to_the_data(
+        train, ["--no-final", "--results", str(tmp_path / "r.json")], monkeypatch
+    )
+    assert loaded == train.SYNTHETIC and train.VARIANT == {}
+
+
+def _run_to_the_data(
+    train: Any, argv: list[str], monkeypatch: pytest.MonkeyPatch
+) -> tuple[str, ...]:
     """``train_builtin.main()`` with ``argv``, stopped where it would load the recordings."""
     pytest.importorskip("torch")
     monkeypatch.setattr(sys, "argv", ["train_builtin.py", *argv])
     monkeypatch.setattr(train, "VARIANT", {})
     monkeypatch.setattr(train, "SEEDS", train.SEEDS)
     monkeypatch.setattr(train, "load_sets", _past_the_checks)
-    with pytest.raises(RuntimeError, match="past the argument checks"):
+    with pytest.raises(_PastTheChecks) as stop:
         train.main()
+    return stop.value.synthetic
 
 
-def _past_the_checks(_root: Path) -> None:
-    raise RuntimeError("past the argument checks")
+class _PastTheChecks(RuntimeError):
+    def __init__(self, synthetic: tuple[str, ...]) -> None:
+        super().__init__("past the argument checks")
+        self.synthetic = synthetic
+
+
+def _past_the_checks(_root: Path, synthetic: tuple[str, ...]) -> None:
+    raise _PastTheChecks(synthetic)
