@@ -274,45 +274,58 @@ def train_final(sets: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     return model, info
 
 
-def leave_one_out(sets: dict[str, Any], test: str) -> list[dict[str, Any]]:
-    """The recipe and the references trained without ``test``, scored on it."""
-    from qdcnn.config import PipelineConfig
-    from qdcnn.direction.methods import get_method
-    from qdcnn.experiments.evaluate import EvaluationSpec
-    from qdcnn.experiments.evaluate_cross import Recording, cross_evaluate
-
+def leave_one_out(
+    sets: dict[str, Any], test: str, methods: tuple[str, ...] = (METHOD, *REFERENCES)
+) -> list[dict[str, Any]]:
+    """``methods`` (the recipe, then the references) trained without ``test``, scored on it;
+    each reference is paired with the first."""
     names = [n for n in sets if n != test]
     parts = make_parts(sets, names, test)
-    spec = EvaluationSpec(
-        "",
-        METHOD,
-        PipelineConfig(seed=SEED),
-        training=training_options(),
-        train=tuple(sets[n].spec for n in names),
-        test=(sets[test].spec,),
-        seeds=SEEDS,
-    )
     out, results = [], []
-    for method in (METHOD, *REFERENCES):
-        recs = [Recording(p.name, *_one(p, method)) for p in parts]
-        t0, c0 = time.perf_counter(), time.process_time()
-        (res,) = cross_evaluate(get_method(method), recs[:-1], recs[-1:], spec)
-        row = res.to_dict()  # with the per-frame predictions: paired comparisons stay possible
-        row["predicted_counts"] = np.bincount(res.predictions[0], minlength=3).tolist()
-        row["test_frames"] = {"of": len(parts[-1].frames), "stride": _stride(parts[-1])}
-        row["wall_s"] = round(time.perf_counter() - t0, 1)
-        row["cpu_s"] = round(time.process_time() - c0, 1)
-        print(
-            f"left out {test}: {method} BA {res.balanced_accuracy:.3f} "
-            f"{res.balanced_accuracy_ci} ({row['wall_s']} s)",
-            flush=True,
-        )
+    for method in methods:
+        res, row = left_out_score(sets, parts, method)
         out.append(row)
         results.append(res)
     for res in results[1:]:
         out[0].setdefault("paired", []).append(paired_row(results[0], res))
         print(f"left out {test}: {out[0]['paired'][-1]}", flush=True)
     return out
+
+
+def left_out_score(
+    sets: dict[str, Any], parts: list[Part], method: str
+) -> tuple[Any, dict[str, Any]]:
+    """``method`` trained on ``parts`` but the last (with :data:`SEEDS` seeds), scored on the
+    last: its result and its row (with the per-frame predictions)."""
+    from qdcnn.config import PipelineConfig
+    from qdcnn.direction.methods import get_method
+    from qdcnn.experiments.evaluate import EvaluationSpec
+    from qdcnn.experiments.evaluate_cross import Recording, cross_evaluate
+
+    test = parts[-1].name
+    spec = EvaluationSpec(
+        "",
+        METHOD,
+        PipelineConfig(seed=SEED),
+        training=training_options(),
+        train=tuple(sets[p.name].spec for p in parts[:-1]),
+        test=(sets[test].spec,),
+        seeds=SEEDS,
+    )
+    recs = [Recording(p.name, *_one(p, method)) for p in parts]
+    t0, c0 = time.perf_counter(), time.process_time()
+    (res,) = cross_evaluate(get_method(method), recs[:-1], recs[-1:], spec)
+    row = res.to_dict()  # with the per-frame predictions: paired comparisons stay possible
+    row["predicted_counts"] = np.bincount(res.predictions[0], minlength=3).tolist()
+    row["test_frames"] = {"of": len(parts[-1].frames), "stride": _stride(parts[-1])}
+    row["wall_s"] = round(time.perf_counter() - t0, 1)
+    row["cpu_s"] = round(time.process_time() - c0, 1)
+    print(
+        f"left out {test}: {method} BA {res.balanced_accuracy:.3f} "
+        f"{res.balanced_accuracy_ci} ({row['wall_s']} s)",
+        flush=True,
+    )
+    return res, row
 
 
 def paired_row(a: Any, b: Any) -> dict[str, Any]:

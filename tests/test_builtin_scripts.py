@@ -196,3 +196,108 @@ class _PastTheChecks(RuntimeError):
 
 def _past_the_checks(_root: Path, synthetic: tuple[str, ...]) -> None:
     raise _PastTheChecks(synthetic)
+
+
+@pytest.fixture(scope="module")
+def nested_script() -> Any:
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import builtin_nested
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    return builtin_nested
+
+
+RECORDINGS = ["lake", "real", "mountain", "night"]
+
+
+def _fake_scores(calls: list[tuple[list[str], str, str]]) -> Any:
+    """A stand-in for training: records what trained and tested, scores by a fixed table."""
+    table = {"plain": 0.4, "edges": 0.5, "standardised": 0.6}
+
+    def score(_sets: Any, train: list[str], test: str, candidate: str) -> dict[str, Any]:
+        calls.append((list(train), test, candidate))
+        bonus = 0.3 if (candidate, test) == ("plain", "night") else 0.0  # plain wins one road
+        return {"balanced_accuracy": table[candidate] + bonus, "method": "qdcnn-head"}
+
+    return score
+
+
+def test_the_nested_choice_never_sees_the_outer_recording(
+    nested_script: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls: list[tuple[list[str], str, str]] = []
+    monkeypatch.setattr(nested_script, "score", _fake_scores(calls))
+    monkeypatch.setattr(nested_script.tb, "RECORDINGS", dict.fromkeys(RECORDINGS))
+    sets = dict.fromkeys([*RECORDINGS, "synthetic-track1"])
+    entries = list(nested_script.nested(sets, "lake", ["plain", "edges", "standardised"], {}))
+    *inner, outer = calls
+    assert len(inner) == 9 and len(entries) == 10
+    assert all("lake" not in train and test != "lake" for train, test, _ in inner)
+    assert all(test not in train and len(train) == 2 for train, test, _ in inner)
+    entry = entries[-1]
+    assert entry["inner_mean"] == pytest.approx({"plain": 0.5, "edges": 0.5, "standardised": 0.6})
+    assert entry["chosen"] == "standardised"
+    assert outer == (["real", "mountain", "night"], "lake", "standardised")
+    assert entry["outer"]["method_variant"] == "standardised"
+
+
+def test_a_nested_choice_breaks_ties_by_the_candidates_order(nested_script: Any) -> None:
+    assert nested_script.choose({"plain": 0.5, "edges": 0.5}) == "plain"
+    assert nested_script.choose({"edges": 0.5, "plain": 0.5}) == "edges"
+    assert nested_script.choose({"edges": 0.5, "plain": 0.51}) == "plain"
+
+
+def test_a_stopped_nested_run_goes_on_where_it_stopped(
+    nested_script: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls: list[tuple[list[str], str, str]] = []
+    monkeypatch.setattr(nested_script, "score", _fake_scores(calls))
+    monkeypatch.setattr(nested_script.tb, "RECORDINGS", dict.fromkeys(RECORDINGS))
+    sets = dict.fromkeys(RECORDINGS)
+    saved = {"candidates": ["edges", "standardised"], "inner": {"edges": {"real": 0.9}}}
+    *_, entry = nested_script.nested(sets, "lake", ["edges", "standardised"], saved)
+    assert ("real", "edges") not in [(test, c) for _, test, c in calls]
+    assert len(calls) == 5 + 1 and entry["inner"]["edges"]["real"] == 0.9
+    calls.clear()  # all done: nothing trains again
+    assert list(nested_script.nested(sets, "lake", ["edges", "standardised"], entry)) == []
+    assert not calls
+
+
+def test_a_nested_recipe_is_set_only_while_it_trains(nested_script: Any) -> None:
+    before = dict(nested_script.tb.VARIANT)
+    with nested_script.recipe({"edge_frames": True}):
+        assert nested_script.tb.VARIANT == {"edge_frames": True}
+    assert nested_script.tb.VARIANT == before
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["--candidates", "plain,colour"],
+            "--candidates: colour not in plain, standardised, edges, with-edges",
+        ),
+        (["--candidates", "plain"], "--candidates: give at least two recipes to choose from"),
+        (
+            ["--outer", "my-road"],
+            "--outer: my-road not in udacity-lake-track, udacity-mountain-track, "
+            "udacity-dark-mountain-track, real-dashcam-sample",
+        ),
+    ],
+)
+def test_builtin_nested_refuses_what_it_cannot_choose(
+    nested_script: Any,
+    argv: list[str],
+    message: str,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+) -> None:
+    monkeypatch.setattr(
+        sys, "argv", ["builtin_nested.py", *argv, "--results", str(tmp_path / "n.json")]
+    )
+    with pytest.raises(SystemExit) as stop:
+        nested_script.main()
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.strip().endswith(f"error: {message}")
