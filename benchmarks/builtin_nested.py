@@ -46,6 +46,10 @@ CANDIDATES: dict[str, dict[str, Any]] = {
 }
 
 
+#: What a saved score was trained with; a score trained otherwise is trained again.
+TRAINED_BY = ("epochs", "synthetic", "data_root")
+
+
 @contextmanager
 def recipe(variant: dict[str, Any]) -> Iterator[None]:
     """``train_builtin``'s recipe set to ``variant`` while the block runs."""
@@ -61,29 +65,37 @@ def recipe(variant: dict[str, Any]) -> Iterator[None]:
 
 def score(sets: dict[str, Any], train: list[str], test: str, candidate: str) -> dict[str, Any]:
     """``candidate`` trained on ``train`` (and the presets), scored on ``test``: its row."""
-    kept = {n: fs for n, fs in sets.items() if n in train or n not in tb.RECORDINGS}
-    names = list(kept)
+    kept = {n: fs for n, fs in sets.items() if n in train or n.startswith("synthetic-")}
     with recipe(CANDIDATES[candidate]):
-        parts = tb.make_parts({**kept, test: sets[test]}, names, test)
+        parts = tb.make_parts({**kept, test: sets[test]}, list(kept), test)
         _, row = tb.left_out_score({**kept, test: sets[test]}, parts, tb.METHOD)
     return row
 
 
 def choose(means: dict[str, float]) -> str:
     """The candidate with the highest mean inner balanced accuracy (ties: the first)."""
-    order = list(means)
-    return max(order, key=lambda c: (means[c], -order.index(c)))
+    return max(means, key=means.__getitem__)
+
+
+def resumed(saved: dict[str, Any], setup: dict[str, Any]) -> dict[str, Any]:
+    """What of a saved entry still holds under ``setup``: nothing when it was trained
+    otherwise (epochs, presets, data), else the inner scores of the current candidates
+    and the outer score (kept only if the choice comes out the same)."""
+    before = saved.get("setup", {})
+    if any(before.get(k) != setup[k] for k in TRAINED_BY):
+        return {"setup": setup, "inner": {}}
+    inner = {c: saved.get("inner", {}).get(c, {}) for c in setup["candidates"]}
+    kept = {"outer": saved["outer"]} if "outer" in saved else {}
+    return {"setup": setup, "inner": inner, **kept}
 
 
 def nested(
-    sets: dict[str, Any], outer: str, candidates: list[str], saved: dict[str, Any]
+    sets: dict[str, Any], outer: str, setup: dict[str, Any], saved: dict[str, Any]
 ) -> Iterator[dict[str, Any]]:
     """The outer recording's entry, yielded after every new score (resumed from ``saved``)."""
     recordings = [n for n in tb.RECORDINGS if n in sets]
-    entry: dict[str, Any] = {"inner": {}, **saved}
-    if entry.get("candidates") != candidates:  # another choice: its outer score does not hold
-        entry.pop("outer", None)
-    entry["candidates"] = candidates
+    candidates = setup["candidates"]
+    entry = resumed(saved, setup)
     for candidate in candidates:
         for q in [n for n in recordings if n != outer]:
             if q in entry["inner"].setdefault(candidate, {}):
@@ -99,6 +111,13 @@ def nested(
         entry["outer"] = {"method_variant": entry["chosen"]}
         entry["outer"].update(score(sets, train, outer, entry["chosen"]))
         yield entry
+
+
+def report(outer: str, entry: dict[str, Any], fresh: bool) -> str:
+    means = ", ".join(f"{c} {v:.3f}" for c, v in entry["inner_mean"].items())
+    ba = entry["outer"]["balanced_accuracy"]
+    saved = "" if fresh else " (saved)"
+    return f"outer {outer}: chose {entry['chosen']} (inner means {means}), BA {ba:.3f}{saved}"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -127,19 +146,28 @@ def main() -> None:
 
     torch.set_num_threads(tb.THREADS)
     os.environ.setdefault("OMP_NUM_THREADS", str(tb.THREADS))
-    results: dict[str, Any] = {"candidates": {c: CANDIDATES[c] for c in candidates}, "outer": {}}
+    results: dict[str, Any] = {"recipes": CANDIDATES, "outer": {}}
     if args.results.is_file():
         results["outer"] = json.loads(args.results.read_text()).get("outer", {})
-    results["commit"] = tb.commit()
     sets = tb.load_sets(args.data_root)
+    if missing := [n for n in tb.RECORDINGS if n not in sets]:
+        parser.error(f"--data-root {args.data_root}: no recording named {', '.join(missing)}")
+    setup = {
+        "candidates": candidates,
+        "epochs": tb.training_options().epochs,
+        "synthetic": list(tb.SYNTHETIC),
+        "data_root": str(args.data_root.resolve()),
+        "commit": tb.commit(),
+    }
     for outer in outers:
-        for entry in nested(sets, outer, candidates, results["outer"].get(outer, {})):
-            results["outer"][outer] = entry
+        fresh = False
+        for entry in nested(sets, outer, setup, results["outer"].get(outer, {})):
+            fresh, results["outer"][outer] = True, entry
             text = json.dumps(results, indent=1, default=tb._plain) + "\n"
             atomic_write_bytes(args.results, text.encode())
-        done = results["outer"][outer]
-        ba = done["outer"]["balanced_accuracy"]
-        print(f"outer {outer}: chose {done['chosen']} ({done['inner_mean']}), BA {ba:.3f}")
+        print(report(outer, results["outer"][outer], fresh), flush=True)
+    scores = [results["outer"][o]["outer"]["balanced_accuracy"] for o in outers]
+    print(f"mean over {len(outers)} outer recordings: BA {np.mean(scores):.3f}", flush=True)
 
 
 if __name__ == "__main__":

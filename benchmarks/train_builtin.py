@@ -498,7 +498,7 @@ def synthetic_specs(parser: argparse.ArgumentParser, text: str) -> tuple[str, ..
     specs = tuple(f"synthetic:{item.strip()}" for item in text.split(",") if item.strip())
     for spec in specs:
         preset, _, count = spec.removeprefix("synthetic:").partition(":")
-        if preset not in PRESETS or not count.isdigit():
+        if preset not in PRESETS or not count.isdigit() or int(count) < 1:
             parser.error(f"--synthetic {text!r}: give PRESET:N items, a preset in {PRESETS}")
     presets = [spec.split(":")[1] for spec in specs]
     if len(set(presets)) < len(presets):

@@ -83,6 +83,11 @@ def test_paired_difference_of_files_scored_with_several_seeds(
             "('track1', 'track2', 'rain', 'dashcam')",
         ),
         (
+            ["--synthetic", "track1:0"],
+            "--synthetic 'track1:0': give PRESET:N items, a preset in "
+            "('track1', 'track2', 'rain', 'dashcam')",
+        ),
+        (
             ["--synthetic", "track1"],
             "--synthetic 'track1': give PRESET:N items, a preset in "
             "('track1', 'track2', 'rain', 'dashcam')",
@@ -209,37 +214,81 @@ def nested_script() -> Any:
 
 
 RECORDINGS = ["lake", "real", "mountain", "night"]
+SETUP = {"epochs": 15, "synthetic": ["synthetic:track1:150"], "data_root": "/data"}
+
+
+def _setup(*candidates: str, **changes: Any) -> dict[str, Any]:
+    return {"candidates": list(candidates), **SETUP, **changes}
+
+
+class _FakeFrames:
+    """A recording that says which frame sets its labels were resolved on."""
+
+    def __init__(self, name: str, seen: list[tuple[str, list[str]]]) -> None:
+        self.name, self.spec, self.seen = name, f"udacity:{name}", seen
+
+    def __len__(self) -> int:
+        return 30
+
+    def labels(self, _config: Any, *, train: list[Any]) -> np.ndarray:
+        self.seen.append((self.name, [fs.name for fs in train]))
+        return np.arange(30) % 3
 
 
 def _fake_scores(calls: list[tuple[list[str], str, str]]) -> Any:
-    """A stand-in for training: records what trained and tested, scores by a fixed table."""
+    """A stand-in for training: what trained and tested, scored by a fixed table."""
     table = {"plain": 0.4, "edges": 0.5, "standardised": 0.6}
 
-    def score(_sets: Any, train: list[str], test: str, candidate: str) -> dict[str, Any]:
-        calls.append((list(train), test, candidate))
+    def left_out_score(_sets: Any, parts: list[Any], _method: str) -> tuple[None, dict[str, Any]]:
+        candidate = _candidate_of(nested_module().tb.VARIANT)
+        *train, test = [p.name for p in parts]
+        calls.append((train, test, candidate))
         bonus = 0.3 if (candidate, test) == ("plain", "night") else 0.0  # plain wins one road
-        return {"balanced_accuracy": table[candidate] + bonus, "method": "qdcnn-head"}
+        return None, {"balanced_accuracy": table[candidate] + bonus, "method": "qdcnn-head"}
 
-    return score
+    return left_out_score
+
+
+def nested_module() -> Any:
+    return sys.modules["builtin_nested"]
+
+
+def _candidate_of(variant: dict[str, Any]) -> str:
+    (name,) = [c for c, v in nested_module().CANDIDATES.items() if v == variant]
+    return name
+
+
+def _fake_world(
+    nested_script: Any, monkeypatch: pytest.MonkeyPatch
+) -> tuple[dict[str, Any], list[Any], list[Any]]:
+    calls: list[tuple[list[str], str, str]] = []
+    seen: list[tuple[str, list[str]]] = []
+    monkeypatch.setattr(nested_script.tb, "left_out_score", _fake_scores(calls))
+    monkeypatch.setattr(nested_script.tb, "RECORDINGS", {n: ("", 3) for n in RECORDINGS})
+    names = [*RECORDINGS, "synthetic-track1"]
+    return {n: _FakeFrames(n, seen) for n in names}, calls, seen
 
 
 def test_the_nested_choice_never_sees_the_outer_recording(
     nested_script: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    calls: list[tuple[list[str], str, str]] = []
-    monkeypatch.setattr(nested_script, "score", _fake_scores(calls))
-    monkeypatch.setattr(nested_script.tb, "RECORDINGS", dict.fromkeys(RECORDINGS))
-    sets = dict.fromkeys([*RECORDINGS, "synthetic-track1"])
-    entries = list(nested_script.nested(sets, "lake", ["plain", "edges", "standardised"], {}))
+    sets, calls, seen = _fake_world(nested_script, monkeypatch)
+    setup = _setup("plain", "edges", "standardised")
+    entries = list(nested_script.nested(sets, "lake", setup, {}))
     *inner, outer = calls
     assert len(inner) == 9 and len(entries) == 10
     assert all("lake" not in train and test != "lake" for train, test, _ in inner)
-    assert all(test not in train and len(train) == 2 for train, test, _ in inner)
+    assert all(test not in train and "synthetic-track1" in train for train, test, _ in inner)
+    assert all(len(train) == 3 for train, _, _ in inner)  # two recordings and the preset
+    assert len(seen) == 9 * 4 + 5  # every part of every run labelled, on its training sets
+    assert not any("lake" in train for _, train in seen)
+    assert [name for name, _ in seen].count("lake") == 1  # as the outer test, once
     entry = entries[-1]
     assert entry["inner_mean"] == pytest.approx({"plain": 0.5, "edges": 0.5, "standardised": 0.6})
     assert entry["chosen"] == "standardised"
-    assert outer == (["real", "mountain", "night"], "lake", "standardised")
+    assert outer == (["real", "mountain", "night", "synthetic-track1"], "lake", "standardised")
     assert entry["outer"]["method_variant"] == "standardised"
+    assert nested_script.tb.VARIANT == {}
 
 
 def test_a_nested_choice_breaks_ties_by_the_candidates_order(nested_script: Any) -> None:
@@ -251,24 +300,45 @@ def test_a_nested_choice_breaks_ties_by_the_candidates_order(nested_script: Any)
 def test_a_stopped_nested_run_goes_on_where_it_stopped(
     nested_script: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    calls: list[tuple[list[str], str, str]] = []
-    monkeypatch.setattr(nested_script, "score", _fake_scores(calls))
-    monkeypatch.setattr(nested_script.tb, "RECORDINGS", dict.fromkeys(RECORDINGS))
-    sets = dict.fromkeys(RECORDINGS)
-    saved = {"candidates": ["edges", "standardised"], "inner": {"edges": {"real": 0.9}}}
-    *_, entry = nested_script.nested(sets, "lake", ["edges", "standardised"], saved)
+    sets, calls, _ = _fake_world(nested_script, monkeypatch)
+    setup = _setup("edges", "standardised")
+    saved = {"setup": setup, "inner": {"edges": {"real": 0.9}}}
+    *_, entry = nested_script.nested(sets, "lake", setup, saved)
     assert ("real", "edges") not in [(test, c) for _, test, c in calls]
     assert len(calls) == 5 + 1 and entry["inner"]["edges"]["real"] == 0.9
+    assert entry["chosen"] == "edges"  # (0.9 + 0.5 + 0.5) / 3 > 0.6
     calls.clear()  # all done: nothing trains again
-    assert list(nested_script.nested(sets, "lake", ["edges", "standardised"], entry)) == []
+    assert list(nested_script.nested(sets, "lake", setup, entry)) == []
     assert not calls
 
 
-def test_a_nested_recipe_is_set_only_while_it_trains(nested_script: Any) -> None:
-    before = dict(nested_script.tb.VARIANT)
-    with nested_script.recipe({"edge_frames": True}):
-        assert nested_script.tb.VARIANT == {"edge_frames": True}
-    assert nested_script.tb.VARIANT == before
+def test_a_nested_run_with_other_candidates_keeps_only_what_still_holds(
+    nested_script: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sets, calls, _ = _fake_world(nested_script, monkeypatch)
+    *_, first = nested_script.nested(sets, "lake", _setup("edges", "standardised"), {})
+    calls.clear()
+    assert first["chosen"] == "standardised"
+    *_, entry = nested_script.nested(sets, "lake", _setup("edges", "plain"), first)
+    assert [c for _, _, c in calls] == ["plain"] * 3 + ["edges"]  # the choice changed
+    assert set(entry["inner"]) == {"plain", "edges"} and entry["chosen"] == "edges"  # a tie
+    calls.clear()
+    assert list(nested_script.nested(sets, "lake", _setup("edges", "plain"), entry)) == []
+    assert not calls and entry["outer"]["method_variant"] == "edges"
+    stale = nested_script.nested(sets, "lake", _setup("edges", "plain", epochs=1), entry)
+    assert len(list(stale)) == 7  # trained with other epochs: everything again
+
+
+def test_a_nested_recipe_is_set_only_while_it_trains(
+    nested_script: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(nested_script.tb, "VARIANT", {"standardise_frames": False})
+    with nested_script.recipe({}):
+        assert nested_script.tb.training_options().standardise_frames
+    with pytest.raises(KeyError), nested_script.recipe({"edge_frames": True}):
+        assert nested_script.tb.training_options().edge_frames
+        raise KeyError("stopped")
+    assert nested_script.tb.VARIANT == {"standardise_frames": False}
 
 
 @pytest.mark.parametrize(
