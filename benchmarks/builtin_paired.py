@@ -7,6 +7,8 @@ paired block-bootstrap interval (a file scored with several seeds counts their m
 
     python benchmarks/builtin_paired.py docs/results/builtin-recipe-colour-fdbaddb.json \\
         docs/results/builtin-model.json
+
+A results file of ``builtin_nested.py`` counts its outer scores (the chosen recipes').
 """
 
 from __future__ import annotations
@@ -20,9 +22,12 @@ import numpy as np
 
 
 def left_out_rows(path: Path) -> dict[str, dict[str, Any]]:
-    """Per left-out recording, the recipe's (first) row of a results file."""
-    rows = json.loads(path.read_text())["leave_one_out_rows"]
-    return {test: methods[0] for test, methods in rows.items()}
+    """Per left-out recording, the recipe's (first) row of a results file (of
+    ``train_builtin.py``, or the outer rows of ``builtin_nested.py``)."""
+    data = json.loads(path.read_text())
+    if "leave_one_out_rows" not in data:
+        return {test: entry["outer"] for test, entry in data["outer"].items() if "outer" in entry}
+    return {test: methods[0] for test, methods in data["leave_one_out_rows"].items()}
 
 
 def paired_rows(a: Path, b: Path) -> list[dict[str, Any]]:

@@ -47,6 +47,23 @@ def test_paired_difference_of_files_scored_with_several_seeds(
     assert row["interval"]["low"] < row["value"] < row["interval"]["high"]
 
 
+def test_a_nested_file_is_paired_by_its_outer_scores(
+    scripts: tuple[Any, Any], tmp_path: Path
+) -> None:
+    paired, _ = scripts
+    rng = np.random.default_rng(1)
+    labels = np.repeat(rng.integers(0, 3, 30), 10)
+    chosen = np.where(rng.random(labels.size) < 0.8, labels, (labels + 1) % 3)
+    outer = {"test_labels": labels.tolist(), "predictions": [chosen.tolist()]}
+    nested = {"outer": {"road": {"chosen": "edges", "outer": outer}, "unfinished": {"inner": {}}}}
+    a = tmp_path / "nested.json"
+    a.write_text(json.dumps(nested))
+    b = results_file(tmp_path / "b.json", labels, labels[None])
+    (row,) = paired.paired_rows(a, b)
+    assert row["left_out"] == "road"
+    assert row["value"] == pytest.approx(balanced_accuracy_score(labels, chosen) - 1.0)
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
