@@ -31,14 +31,22 @@ def results_file(path: Path, labels: np.ndarray, runs: np.ndarray) -> Path:
     return path
 
 
+def _noisy(
+    rng: np.random.Generator, labels: np.ndarray, runs: int, *, right: float, shift: int
+) -> np.ndarray:
+    """``runs`` predictions of ``labels``, each right with probability ``right``."""
+    wrong = (labels + shift) % 3
+    return np.where(rng.random((runs, labels.size)) < right, labels, wrong)
+
+
 def test_paired_difference_of_files_scored_with_several_seeds(
     scripts: tuple[Any, Any], tmp_path: Path
 ) -> None:
     paired, _ = scripts
     rng = np.random.default_rng(0)
     labels = np.repeat(rng.integers(0, 3, 40), 10)
-    three = np.where(rng.random((3, labels.size)) < 0.7, labels, (labels + 1) % 3)
-    one = np.where(rng.random((1, labels.size)) < 0.5, labels, (labels + 2) % 3)
+    three = _noisy(rng, labels, 3, right=0.7, shift=1)
+    one = _noisy(rng, labels, 1, right=0.5, shift=2)
     a = results_file(tmp_path / "a.json", labels, three)
     b = results_file(tmp_path / "b.json", labels, one)
     (row,) = paired.paired_rows(a, b)
@@ -51,9 +59,8 @@ def test_a_nested_file_is_paired_by_its_outer_scores(
     scripts: tuple[Any, Any], tmp_path: Path
 ) -> None:
     paired, _ = scripts
-    rng = np.random.default_rng(1)
-    labels = np.repeat(rng.integers(0, 3, 30), 10)
-    chosen = np.where(rng.random(labels.size) < 0.8, labels, (labels + 1) % 3)
+    labels = np.repeat(np.arange(30) % 3, 10)
+    (chosen,) = _noisy(np.random.default_rng(1), labels, 1, right=0.8, shift=1)
     outer = {"test_labels": labels.tolist(), "predictions": [chosen.tolist()]}
     nested = {"outer": {"road": {"chosen": "edges", "outer": outer}, "unfinished": {"inner": {}}}}
     a = tmp_path / "nested.json"
