@@ -65,10 +65,9 @@ def recipe(variant: dict[str, Any]) -> Iterator[None]:
 
 def score(sets: dict[str, Any], train: list[str], test: str, candidate: str) -> dict[str, Any]:
     """``candidate`` trained on ``train`` (and the presets), scored on ``test``: its row."""
-    kept = {n: fs for n, fs in sets.items() if n in train or n.startswith("synthetic-")}
+    names = [n for n in sets if n in train or n.startswith("synthetic-")]
     with recipe(CANDIDATES[candidate]):
-        parts = tb.make_parts({**kept, test: sets[test]}, list(kept), test)
-        _, row = tb.left_out_score({**kept, test: sets[test]}, parts, tb.METHOD)
+        _, row = tb.left_out_score(tb.make_parts(sets, names, test), tb.METHOD)
     return row
 
 
@@ -83,7 +82,7 @@ def resumed(saved: dict[str, Any], setup: dict[str, Any]) -> dict[str, Any]:
     and the outer score (kept only if the choice comes out the same)."""
     before = saved.get("setup", {})
     if any(before.get(k) != setup[k] for k in TRAINED_BY):
-        return {"setup": setup, "inner": {}}
+        saved = {}
     inner = {c: saved.get("inner", {}).get(c, {}) for c in setup["candidates"]}
     kept = {"outer": saved["outer"]} if "outer" in saved else {}
     return {"setup": setup, "inner": inner, **kept}
@@ -98,7 +97,7 @@ def nested(
     entry = resumed(saved, setup)
     for candidate in candidates:
         for q in [n for n in recordings if n != outer]:
-            if q in entry["inner"].setdefault(candidate, {}):
+            if q in entry["inner"][candidate]:
                 continue
             train = [n for n in recordings if n not in (outer, q)]
             row = score(sets, train, q, candidate)

@@ -274,16 +274,14 @@ def train_final(sets: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     return model, info
 
 
-def leave_one_out(
-    sets: dict[str, Any], test: str, methods: tuple[str, ...] = (METHOD, *REFERENCES)
-) -> list[dict[str, Any]]:
-    """``methods`` (the recipe, then the references) trained without ``test``, scored on it;
-    each reference is paired with the first."""
+def leave_one_out(sets: dict[str, Any], test: str) -> list[dict[str, Any]]:
+    """The recipe and the references trained without ``test``, scored on it; each reference
+    is paired with the recipe."""
     names = [n for n in sets if n != test]
     parts = make_parts(sets, names, test)
     out, results = [], []
-    for method in methods:
-        res, row = left_out_score(sets, parts, method)
+    for method in (METHOD, *REFERENCES):
+        res, row = left_out_score(parts, method)
         out.append(row)
         results.append(res)
     for res in results[1:]:
@@ -292,9 +290,7 @@ def leave_one_out(
     return out
 
 
-def left_out_score(
-    sets: dict[str, Any], parts: list[Part], method: str
-) -> tuple[Any, dict[str, Any]]:
+def left_out_score(parts: list[Part], method: str) -> tuple[Any, dict[str, Any]]:
     """``method`` trained on ``parts`` but the last (with :data:`SEEDS` seeds), scored on the
     last: its result and its row (with the per-frame predictions)."""
     from qdcnn.config import PipelineConfig
@@ -308,8 +304,8 @@ def left_out_score(
         METHOD,
         PipelineConfig(seed=SEED),
         training=training_options(),
-        train=tuple(sets[p.name].spec for p in parts[:-1]),
-        test=(sets[test].spec,),
+        train=tuple(p.frames.spec for p in parts[:-1]),
+        test=(parts[-1].frames.spec,),
         seeds=SEEDS,
     )
     recs = [Recording(p.name, *_one(p, method)) for p in parts]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
 from pathlib import Path
@@ -14,15 +15,18 @@ from sklearn.metrics import balanced_accuracy_score
 BENCHMARKS = Path(__file__).parents[1] / "benchmarks"
 
 
-@pytest.fixture(scope="module")
-def scripts() -> tuple[Any, Any]:
+def _benchmark(name: str) -> Any:
+    """A benchmark script imported as a module (its sibling imports found too)."""
     sys.path.insert(0, str(BENCHMARKS))
     try:
-        import builtin_paired
-        import train_builtin
+        return importlib.import_module(name)
     finally:
         sys.path.remove(str(BENCHMARKS))
-    return builtin_paired, train_builtin
+
+
+@pytest.fixture(scope="module")
+def scripts() -> tuple[Any, Any]:
+    return _benchmark("builtin_paired"), _benchmark("train_builtin")
 
 
 def results_file(path: Path, labels: np.ndarray, runs: np.ndarray) -> Path:
@@ -229,12 +233,7 @@ def _past_the_checks(_root: Path, synthetic: tuple[str, ...]) -> None:
 
 @pytest.fixture(scope="module")
 def nested_script() -> Any:
-    sys.path.insert(0, str(BENCHMARKS))
-    try:
-        import builtin_nested
-    finally:
-        sys.path.remove(str(BENCHMARKS))
-    return builtin_nested
+    return _benchmark("builtin_nested")
 
 
 RECORDINGS = ["lake", "real", "mountain", "night"]
@@ -259,12 +258,13 @@ class _FakeFrames:
         return np.arange(30) % 3
 
 
-def _fake_scores(calls: list[tuple[list[str], str, str]]) -> Any:
+def _fake_scores(nested_script: Any, calls: list[tuple[list[str], str, str]]) -> Any:
     """A stand-in for training: what trained and tested, scored by a fixed table."""
     table = {"plain": 0.4, "edges": 0.5, "standardised": 0.6}
 
-    def left_out_score(_sets: Any, parts: list[Any], _method: str) -> tuple[None, dict[str, Any]]:
-        candidate = _candidate_of(nested_module().tb.VARIANT)
+    def left_out_score(parts: list[Any], _method: str) -> tuple[None, dict[str, Any]]:
+        variant = nested_script.tb.VARIANT
+        (candidate,) = [c for c, v in nested_script.CANDIDATES.items() if v == variant]
         *train, test = [p.name for p in parts]
         calls.append((train, test, candidate))
         bonus = 0.3 if (candidate, test) == ("plain", "night") else 0.0  # plain wins one road
@@ -273,21 +273,12 @@ def _fake_scores(calls: list[tuple[list[str], str, str]]) -> Any:
     return left_out_score
 
 
-def nested_module() -> Any:
-    return sys.modules["builtin_nested"]
-
-
-def _candidate_of(variant: dict[str, Any]) -> str:
-    (name,) = [c for c, v in nested_module().CANDIDATES.items() if v == variant]
-    return name
-
-
 def _fake_world(
     nested_script: Any, monkeypatch: pytest.MonkeyPatch
 ) -> tuple[dict[str, Any], list[Any], list[Any]]:
     calls: list[tuple[list[str], str, str]] = []
     seen: list[tuple[str, list[str]]] = []
-    monkeypatch.setattr(nested_script.tb, "left_out_score", _fake_scores(calls))
+    monkeypatch.setattr(nested_script.tb, "left_out_score", _fake_scores(nested_script, calls))
     monkeypatch.setattr(nested_script.tb, "RECORDINGS", {n: ("", 3) for n in RECORDINGS})
     names = [*RECORDINGS, "synthetic-track1"]
     return {n: _FakeFrames(n, seen) for n in names}, calls, seen
